@@ -1,0 +1,35 @@
+"""activeperc_env: the active-perception room of the meta-evaluation paper, for MARL and RL code.
+
+PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
+Gymnasium (registered on import): ``activeperc/Joint-v0``, ``activeperc/FixedForward-v0``.
+Batched core for training: :class:`Simulator`.
+"""
+
+from activeperc_env.gl import choose_backend
+
+choose_backend()
+
+import gymnasium  # noqa: E402
+
+from activeperc_env.config import EnvConfig  # noqa: E402
+from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator  # noqa: E402
+from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
+from activeperc_env.pettingzoo_env import LOOKER, MOVER, env, parallel_env, raw_env  # noqa: E402
+
+__all__ = [
+    "EnvConfig",
+    "FixedForwardEnv",
+    "JointEnv",
+    "LOOKER",
+    "LOOKER_ACTIONS",
+    "MOVER",
+    "MOVER_ACTIONS",
+    "Simulator",
+    "env",
+    "parallel_env",
+    "raw_env",
+]
+
+for _name, _entry in (("Joint-v0", "JointEnv"), ("FixedForward-v0", "FixedForwardEnv")):
+    if f"activeperc/{_name}" not in gymnasium.registry:
+        gymnasium.register(f"activeperc/{_name}", entry_point=f"activeperc_env.gym_envs:{_entry}")

@@ -1,0 +1,88 @@
+"""The environment's configuration: one typed dataclass, every default defined here."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from activeperc_env.names import OCCLUDER_BODIES
+
+LOOKER_REWARDS = ("shared", "none")
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Configuration of the active-perception room; invalid values raise ``ValueError``."""
+
+    fov: float = 60.0
+    """Horizontal field of view of the robot's camera, in degrees (the paper uses 60 and 100)."""
+    width: int = 80
+    """Width of the first-person image, in pixels."""
+    height: int = 60
+    """Height of the first-person image, in pixels."""
+    num_obstacles: int = 3
+    """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
+    max_cycles: int = 100
+    """Cycles (one move and one look each) before the episode is truncated."""
+    pan_range: float = 120.0
+    """The camera pans within [-pan_range, +pan_range] degrees of the robot's heading."""
+    pan_step: float = 30.0
+    """Degrees the camera turns for one 'pan left' or 'pan right' action."""
+    control_hz: float = 10.0
+    """Mover decisions per simulated second; each move drives the wheels for 1/control_hz s."""
+    forward_speed: float = 1.5
+    """Wheel rim speed of the 'forward' action, in m/s."""
+    turn_speed: float = 120.0
+    """Yaw rate the wheels are driven at by 'turn left' and 'turn right', in degrees per second."""
+    looker_reward: str = "shared"
+    """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
+
+    def __post_init__(self) -> None:
+        checks = {
+            "fov": 0.0 < self.fov < 180.0,
+            "width": isinstance(self.width, int) and 8 <= self.width <= 1024,
+            "height": isinstance(self.height, int) and 8 <= self.height <= 1024,
+            "num_obstacles": isinstance(self.num_obstacles, int)
+            and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
+            "max_cycles": isinstance(self.max_cycles, int) and self.max_cycles >= 1,
+            "pan_range": 0.0 <= self.pan_range <= 180.0,
+            "pan_step": 0.0 < self.pan_step <= 180.0,
+            "control_hz": 0.5 <= self.control_hz <= 200.0,
+            "forward_speed": 0.0 < self.forward_speed <= 3.0,
+            "turn_speed": 0.0 < self.turn_speed <= 720.0,
+            "looker_reward": self.looker_reward in LOOKER_REWARDS,
+        }
+        allowed = {
+            "fov": "a number of degrees in (0, 180)",
+            "width": "an int in [8, 1024]",
+            "height": "an int in [8, 1024]",
+            "num_obstacles": f"an int in [0, {len(OCCLUDER_BODIES)}]",
+            "max_cycles": "an int >= 1",
+            "pan_range": "degrees in [0, 180]",
+            "pan_step": "degrees in (0, 180]",
+            "control_hz": "a rate in [0.5, 200] Hz",
+            "forward_speed": "m/s in (0, 3]",
+            "turn_speed": "degrees per second in (0, 720]",
+            "looker_reward": f"one of {LOOKER_REWARDS}",
+        }
+        for field, ok in checks.items():
+            if not ok:
+                raise ValueError(
+                    f"EnvConfig.{field}={getattr(self, field)!r} is invalid: expected {allowed[field]}"
+                )
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> EnvConfig:
+        """Build a config from keyword arguments, naming any unknown one in a ``ValueError``."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(kwargs) - known)
+        if unknown:
+            raise ValueError(f"unknown env option(s) {unknown}; known options: {sorted(known)}")
+        return cls(**kwargs)
+
+    @property
+    def fovy(self) -> float:
+        """MuJoCo's vertical field of view (degrees) for the horizontal ``fov`` and the aspect."""
+        half = math.radians(self.fov) / 2
+        return math.degrees(2 * math.atan(math.tan(half) * self.height / self.width))

@@ -1,0 +1,267 @@
+"""The batched simulator core: N rooms, their physics, episode logic and rendering.
+
+Every adapter (PettingZoo, Gymnasium, TorchRL) drives this one class, so the same seed gives
+the same episode through every API. One cycle of the paper's section 2 is two calls:
+
+1. ``move(u_m)``: the wheels are driven for one control period; reward, termination and
+   truncation are computed; ``render()`` then gives ``s_bar``, the looker's observation.
+2. ``look(u_c)``: the pan joint turns; no simulated time passes and the base does not move;
+   ``render()`` then gives ``s'``, the mover's next observation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from activeperc_env import names
+from activeperc_env.config import EnvConfig
+from activeperc_env.layout import sample_layout
+from activeperc_env.render import TiledRenderer
+
+MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
+LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
+SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
+
+
+@dataclass
+class MoveResult:
+    """What one move did to each simulation of the call, as (n,) arrays."""
+
+    reward: np.ndarray
+    """The mover's reward ``r(s, u_m)``: ``1 - 0.2 t / T`` on success, else 0 (float32)."""
+    terminated: np.ndarray
+    """The robot reached the goal."""
+    truncated: np.ndarray
+    """The episode reached ``max_cycles`` without success."""
+
+
+def load_model(config: EnvConfig) -> mujoco.MjModel:
+    """Compile the scene and set its camera to the configured field of view."""
+    model = mujoco.MjModel.from_xml_path(str(names.SCENE_XML))
+    eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
+    model.cam_fovy[eye] = config.fovy
+    return model
+
+
+class Simulator:
+    """N independent rooms stepped together; all game logic lives here.
+
+    Args:
+        config: the environment configuration (defaults when ``None``).
+        num_envs: number of rooms N.
+        nthread: physics threads (``mujoco.batch.Batch``); 0 uses every core.
+    """
+
+    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, nthread: int = 0):
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
+        self.config = config if config is not None else EnvConfig()
+        self.num_envs = num_envs
+        self.model = load_model(self.config)
+        self.substeps = max(1, round(1.0 / (self.config.control_hz * self.model.opt.timestep)))
+        nthread = min(nthread or _cpu_count(), num_envs)
+        self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
+        self._qpos = self._batch.bind("qpos")
+        self._qvel = self._batch.bind("qvel")
+        self._ctrl = self._batch.bind("ctrl")
+        self._mocap_pos = self._batch.bind("mocap_pos")
+        self._ids = _Ids(self.model)
+        self._renderer: TiledRenderer | None = None
+        self.cycle = np.zeros(num_envs, dtype=np.int64)
+        self.done = np.ones(num_envs, dtype=bool)
+        self.seeds = np.zeros(num_envs, dtype=np.int64)
+        self._rngs = [np.random.default_rng() for _ in range(num_envs)]
+        wheel = self.config.forward_speed / names.WHEEL_RADIUS
+        turn = math.radians(self.config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
+        # wheel speed targets (left, right) in rad/s, one row per mover action
+        self._wheel_targets = np.array([[-turn, turn], [turn, -turn], [wheel, wheel]])
+        self._pan_deltas = math.radians(self.config.pan_step) * np.array([1.0, 0.0, -1.0])
+        self._pan_limit = math.radians(self.config.pan_range)
+
+    # ----------------------------------------------------------------- episode control
+    def reset(self, ids=None, seeds=None) -> None:
+        """Start new episodes in the rooms ``ids`` (all when ``None``).
+
+        Args:
+            ids: indices of the rooms to reset.
+            seeds: one seed per reset room (an int is broadcast). A room given a seed restarts
+                its random stream from it; a room given ``None`` draws its layout from its stream.
+        """
+        ids = self._as_ids(ids)
+        if seeds is not None:
+            seeds = np.broadcast_to(np.asarray(seeds, dtype=np.int64), ids.shape)
+            for i, seed in zip(ids, seeds):
+                self._rngs[i] = np.random.default_rng(int(seed))
+        self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        n_obs = self.config.num_obstacles
+        for i in ids:
+            layout = sample_layout(self._rngs[i], n_obs)
+            qpos = self._qpos[i]
+            qpos[self._ids.root : self._ids.root + 3] = (*layout.start_xy, names.WHEEL_RADIUS)
+            half = layout.heading / 2
+            qpos[self._ids.root + 3 : self._ids.root + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
+            mocap = self._mocap_pos[i].reshape(-1, 3)
+            mocap[self._ids.goal] = (*layout.goal_xy, names.GOAL_HALF)
+            for k, m in enumerate(self._ids.occluders):
+                if k < n_obs:
+                    mocap[m] = (*layout.occluders_xy[k], names.OCCLUDER_HALF[2])
+                else:
+                    mocap[m] = (names.PARK_X + 2 * k, 0.0, names.OCCLUDER_HALF[2])
+        self._ctrl[ids] = 0.0
+        self.cycle[ids] = 0
+        self.done[ids] = False
+
+    def move(self, actions, ids=None) -> MoveResult:
+        """The mover's half of a cycle: drive the wheels for one control period.
+
+        Args:
+            actions: (n,) ints in {0: turn left, 1: turn right, 2: forward}.
+            ids: the rooms that move (all when ``None``); none of them may be done.
+        """
+        ids = self._as_ids(ids)
+        actions = _check_actions(actions, ids, MOVER_ACTIONS, "mover")
+        if self.done[ids].any():
+            raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
+        ctrl = self._ctrl[ids]
+        ctrl[:, self._ids.wheels] = self._wheel_targets[actions]
+        self._ctrl[ids] = ctrl
+        self._batch.step(ids, nstep=self.substeps)
+        # a stiff servo holds the pan joint while the base moves; its residual error (about
+        # 1e-5 rad) would accumulate over an episode, so the joint returns to its command
+        self._qpos[ids, self._ids.pan] = self._ctrl[ids, self._ids.pan_ctrl]
+        self._qvel[ids, self._ids.pan_dof] = 0.0
+        self.cycle[ids] += 1
+        robot = self._qpos[ids, self._ids.root : self._ids.root + 2]
+        goal = self._mocap_pos[ids].reshape(len(ids), -1, 3)[:, self._ids.goal, :2]
+        success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
+        frac = self.cycle[ids] / self.config.max_cycles
+        reward = np.where(success, 1.0 - 0.2 * frac, 0.0).astype(np.float32)
+        truncated = ~success & (self.cycle[ids] >= self.config.max_cycles)
+        self.done[ids] = success | truncated
+        return MoveResult(reward=reward, terminated=success, truncated=truncated)
+
+    def look(self, actions, ids=None) -> None:
+        """The looker's half of a cycle: turn the camera; no time passes, the base stays put.
+
+        Args:
+            actions: (n,) ints in {0: pan left, 1: hold, 2: pan right}.
+            ids: the rooms whose camera turns (all when ``None``).
+        """
+        ids = self._as_ids(ids)
+        actions = _check_actions(actions, ids, LOOKER_ACTIONS, "looker")
+        pan = self._qpos[ids, self._ids.pan] + self._pan_deltas[actions]
+        pan = np.clip(pan, -self._pan_limit, self._pan_limit).astype(np.float32)
+        self._qpos[ids, self._ids.pan] = pan
+        self._qvel[ids, self._ids.pan_dof] = 0.0
+        self._ctrl[ids, self._ids.pan_ctrl] = pan
+
+    # ----------------------------------------------------------------- observations
+    def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:
+        """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8."""
+        ids = self._as_ids(ids)
+        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids].reshape(len(ids), -1, 3), out)
+
+    def pan(self, ids=None) -> np.ndarray:
+        """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""
+        ids = self._as_ids(ids)
+        return self._qpos[ids, self._ids.pan : self._ids.pan + 1].astype(np.float32)
+
+    def render_map(self, index: int = 0) -> np.ndarray:
+        """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
+        return self.renderer.render_map(
+            self._qpos[index], self._mocap_pos[index].reshape(-1, 3), self.config.fov
+        )
+
+    def pose(self, index: int = 0) -> tuple[np.ndarray, float, float]:
+        """Robot position (x, y), heading and camera pan of room ``index``, for scripts and tests."""
+        q = self._qpos[index]
+        r = self._ids.root
+        heading = 2 * math.atan2(q[r + 6], q[r + 3])
+        return q[r : r + 2].copy(), math.atan2(math.sin(heading), math.cos(heading)), float(q[self._ids.pan])
+
+    def goal_xy(self, index: int = 0) -> np.ndarray:
+        """Centre (x, y) of room ``index``'s goal box."""
+        return self._mocap_pos[index].reshape(-1, 3)[self._ids.goal, :2].copy()
+
+    def occluders_xy(self, index: int = 0) -> np.ndarray:
+        """Centres (k, 2) of room ``index``'s occluder boxes in use."""
+        mocap = self._mocap_pos[index].reshape(-1, 3)
+        return mocap[list(self._ids.occluders[: self.config.num_obstacles]), :2].copy()
+
+    def physics_data(self, index: int = 0) -> mujoco.MjData:
+        """An ``MjData`` holding room ``index``'s full state (for MuJoCo's viewer and tools)."""
+        data = self._batch.get_data(index)
+        mujoco.mj_forward(self.model, data)
+        return data
+
+    @property
+    def renderer(self) -> TiledRenderer:
+        """The renderer, created on first use so that physics-only users need no GL."""
+        if self._renderer is None:
+            self._renderer = TiledRenderer(
+                self.model, self.config.width, self.config.height, self.num_envs
+            )
+        return self._renderer
+
+    def close(self) -> None:
+        """Release the renderer's GL context."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def _as_ids(self, ids) -> np.ndarray:
+        if ids is None:
+            return np.arange(self.num_envs)
+        ids = np.atleast_1d(np.asarray(ids, dtype=np.int64))
+        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
+            raise ValueError(f"room ids {ids.tolist()} out of range for num_envs={self.num_envs}")
+        return ids
+
+
+class _Ids:
+    """Addresses of the named elements in ``qpos``, ``qvel``, ``ctrl`` and ``mocap_pos``, looked up once."""
+
+    def __init__(self, model: mujoco.MjModel):
+        def joint(name):
+            return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+        def mocap(body):
+            return model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)]
+
+        def actuator(name):
+            return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+
+        self.root = int(model.jnt_qposadr[joint(names.ROOT_JOINT)])
+        self.pan = int(model.jnt_qposadr[joint(names.PAN_JOINT)])
+        self.pan_dof = int(model.jnt_dofadr[joint(names.PAN_JOINT)])
+        self.pan_ctrl = actuator(names.PAN_ACTUATOR)
+        self.wheels = [actuator(names.LEFT_WHEEL), actuator(names.RIGHT_WHEEL)]
+        self.goal = int(mocap(names.GOAL_BODY))
+        self.occluders = tuple(int(mocap(b)) for b in names.OCCLUDER_BODIES)
+
+
+def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:
+    """Validate a batch of discrete actions, naming the agent and its action space on error."""
+    arr = np.asarray(actions)
+    if arr.shape == () and len(ids) == 1:
+        arr = arr.reshape(1)
+    if arr.shape != ids.shape or not (np.issubdtype(arr.dtype, np.integer) or arr.dtype == bool):
+        raise ValueError(
+            f"{agent} actions {actions!r} invalid: expected {len(ids)} int(s) in Discrete({len(meanings)}) {meanings}"
+        )
+    if arr.size and (arr.min() < 0 or arr.max() >= len(meanings)):
+        raise ValueError(
+            f"{agent} actions {arr.tolist()} out of range of Discrete({len(meanings)}) {meanings}"
+        )
+    return arr.astype(np.int64)
+
+
+def _cpu_count() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

@@ -1,0 +1,106 @@
+"""Gymnasium single-agent views of the room: the Joint agent and the Fixed-forward mover."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from activeperc_env.config import EnvConfig
+from activeperc_env.core import LOOKER_ACTIONS, Simulator
+from activeperc_env.spaces import check_action, mover_space, observation_space
+from activeperc_env.viewer import HumanViewer
+
+HOLD = LOOKER_ACTIONS.index("hold")
+
+
+class _SingleAgentEnv(gym.Env):
+    """One agent over a one-room ``Simulator``; subclasses map its action to a move and a look."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+
+    def __init__(self, render_mode: str | None = None, **config):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(
+                f"render_mode={render_mode!r} is invalid: expected None or one of {self.metadata['render_modes']}"
+            )
+        self.render_mode = render_mode
+        self.config = EnvConfig.from_kwargs(**config)
+        self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
+        self.sim = Simulator(self.config, num_envs=1, nthread=1)
+        self.observation_space = observation_space(self.config)
+        self._viewer = HumanViewer() if render_mode == "human" else None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode; ``seed`` fixes the layout, as in the PettingZoo envs."""
+        super().reset(seed=seed)
+        self.sim.reset(seeds=None if seed is None else [seed])
+        if self.render_mode == "human":
+            self.render()
+        return self._observe(), {}
+
+    def step(self, action):
+        """One cycle: the move, then the look; returns Gymnasium's five values."""
+        move, look = self._split(action)
+        result = self.sim.move(np.array([move]))
+        self.sim.look(np.array([look]))
+        if self.render_mode == "human":
+            self.render()
+        return (
+            self._observe(),
+            float(result.reward[0]),
+            bool(result.terminated[0]),
+            bool(result.truncated[0]),
+            {"cycle": int(self.sim.cycle[0])},
+        )
+
+    def render(self):
+        """``rgb_array``: the bird's-eye map; ``human``: MuJoCo's viewer."""
+        if self.render_mode == "rgb_array":
+            return self.sim.render_map(0)
+        if self.render_mode == "human":
+            self._viewer.show(self.sim)
+        return None
+
+    def close(self):
+        """Release the renderer and close the viewer."""
+        if self._viewer is not None:
+            self._viewer.close()
+        self.sim.close()
+
+    def _observe(self) -> dict:
+        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
+
+    def _split(self, action) -> tuple[int, int]:
+        raise NotImplementedError
+
+
+class JointEnv(_SingleAgentEnv):
+    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c``.
+
+    The paper's Joint baseline (and the Curriculum baseline's agent). ``u_m`` is the mover's
+    action (0 turn left, 1 turn right, 2 forward), ``u_c`` the looker's (0 pan left, 1 hold,
+    2 pan right); the look is applied after the move. Observation, reward and episode end are
+    those of :class:`activeperc_env.pettingzoo_env.raw_env`, with the mover's reward.
+    """
+
+    def __init__(self, render_mode: str | None = None, **config):
+        super().__init__(render_mode, **config)
+        self.action_space = gym.spaces.Discrete(9)
+
+    def _split(self, action) -> tuple[int, int]:
+        return divmod(check_action("joint agent", action, self.action_space), 3)
+
+
+class FixedForwardEnv(_SingleAgentEnv):
+    """The mover alone, its camera fixed forward (the paper's Fixed_Forward baseline).
+
+    Action ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward. The pan angle in the
+    observation is always 0.
+    """
+
+    def __init__(self, render_mode: str | None = None, **config):
+        super().__init__(render_mode, **config)
+        self.action_space = mover_space()
+
+    def _split(self, action) -> tuple[int, int]:
+        return check_action("mover", action, self.action_space), HOLD

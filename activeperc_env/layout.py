@@ -1,0 +1,78 @@
+"""Random room layouts: the robot's start, the goal, and occluders placed between them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from activeperc_env.names import (
+    GOAL_HALF,
+    OCCLUDER_HALF,
+    ROBOT_RADIUS,
+    ROOM_HALF_X,
+    ROOM_HALF_Y,
+)
+
+START_X = (-ROOM_HALF_X + 0.4, -ROOM_HALF_X + 1.0)
+GOAL_X = (ROOM_HALF_X - 1.0, ROOM_HALF_X - 0.4)
+SIDE_Y = ROOM_HALF_Y - 0.5
+HEADING_SPREAD = np.pi / 2  # the start heading is within +-90 degrees of the goal's bearing
+MAX_TRIES = 1000
+
+
+@dataclass(frozen=True)
+class Layout:
+    """One episode's layout, in metres and radians (world frame, room centred at the origin)."""
+
+    start_xy: np.ndarray
+    """(2,) the robot's start position."""
+    heading: float
+    """The robot's start heading (yaw)."""
+    goal_xy: np.ndarray
+    """(2,) centre of the red goal box."""
+    occluders_xy: np.ndarray
+    """(num_obstacles, 2) centres of the occluder boxes."""
+
+
+def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
+    """Draw a layout: start on the west side, goal on the east side, occluders on the way.
+
+    The first occluder stands on the line from start to goal, so the goal is hidden from the
+    start whenever there is at least one occluder; the others are spread around that line.
+    """
+    start = np.array([rng.uniform(*START_X), rng.uniform(-SIDE_Y, SIDE_Y)])
+    goal = np.array([rng.uniform(*GOAL_X), rng.uniform(-SIDE_Y, SIDE_Y)])
+    line = goal - start
+    bearing = float(np.arctan2(line[1], line[0]))
+    heading = bearing + rng.uniform(-HEADING_SPREAD, HEADING_SPREAD)
+    normal = np.array([-line[1], line[0]]) / np.linalg.norm(line)
+    occluders: list[np.ndarray] = []
+    for i in range(num_obstacles):
+        spread = 0.1 if i == 0 else 1.0
+        for _ in range(MAX_TRIES):
+            xy = start + rng.uniform(0.35, 0.65) * line + rng.uniform(-spread, spread) * normal
+            if _fits(xy, start, goal, occluders):
+                occluders.append(xy)
+                break
+        else:
+            raise RuntimeError(f"could not place occluder {i} after {MAX_TRIES} tries")
+    return Layout(
+        start_xy=start,
+        heading=heading,
+        goal_xy=goal,
+        occluders_xy=np.array(occluders).reshape(num_obstacles, 2),
+    )
+
+
+def _fits(xy: np.ndarray, start: np.ndarray, goal: np.ndarray, others: list[np.ndarray]) -> bool:
+    """Whether an occluder at ``xy`` stays in the room and clear of start, goal and the others."""
+    half = OCCLUDER_HALF[0]
+    if abs(xy[0]) > ROOM_HALF_X - half - 0.05 or abs(xy[1]) > ROOM_HALF_Y - half - 0.05:
+        return False
+    clearance = half * np.sqrt(2) + 0.1
+    if np.linalg.norm(xy - start) < clearance + ROBOT_RADIUS + 0.2:
+        return False
+    if np.linalg.norm(xy - goal) < clearance + GOAL_HALF * np.sqrt(2) + 0.3:
+        return False
+    return all(np.linalg.norm(xy - o) > 2 * half + 0.25 for o in others)

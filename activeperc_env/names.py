@@ -1,0 +1,34 @@
+"""Names of the scene's bodies, joints, actuators and cameras, and the robot's dimensions.
+
+Every lookup of a MuJoCo element goes through these constants; the XML in ``assets/`` is the
+other half of the contract.
+"""
+
+from pathlib import Path
+
+ASSETS = Path(__file__).parent / "assets"
+SCENE_XML = ASSETS / "scene.xml"
+
+ROOT_JOINT = "root"
+LEFT_WHEEL = "left_wheel"
+RIGHT_WHEEL = "right_wheel"
+PAN_JOINT = "pan"
+PAN_ACTUATOR = "pan"
+EYE_CAMERA = "eye"
+MAP_CAMERA = "map"
+GOAL_BODY = "goal"
+OCCLUDER_BODIES = tuple(f"occluder_{i}" for i in range(6))
+OCCLUDER_COLORS = ("green", "yellow", "blue", "green", "yellow", "blue")
+
+# geom group holding the robot's own visuals: hidden in its first-person view
+ROBOT_GROUP = 2
+
+# dimensions that must agree with the XML
+WHEEL_RADIUS = 0.05
+WHEEL_TRACK = 0.26  # distance between the wheels' contact points
+ROBOT_RADIUS = 0.18  # a circle around the chassis, for layout and success checks
+ROOM_HALF_X = 3.0  # inner half-length of the room (x)
+ROOM_HALF_Y = 2.0  # inner half-width of the room (y)
+GOAL_HALF = 0.2
+OCCLUDER_HALF = (0.3, 0.3, 0.4)
+PARK_X = 50.0  # unused occluders stand at x >= PARK_X, outside the walls

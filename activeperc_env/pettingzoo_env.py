@@ -1,0 +1,220 @@
+"""PettingZoo adapters: the AEC env (mover and looker take turns) and the parallel env.
+
+A cycle is the mover's turn then the looker's turn. The mover's reward for its move is
+given as soon as it moves (so the looker's ``last()`` sees it when ``looker_reward='shared'``);
+the episode ends at the end of the cycle in which the robot reached the goal or
+``max_cycles`` ran out, after the looker's turn.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pettingzoo import AECEnv, ParallelEnv
+from pettingzoo.utils import wrappers
+
+from activeperc_env.config import EnvConfig
+from activeperc_env.core import Simulator
+from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space
+from activeperc_env.viewer import HumanViewer
+
+MOVER, LOOKER = "mover_0", "looker_0"
+RENDER_MODES = ["human", "rgb_array"]
+
+
+class _Adapter:
+    """What both PettingZoo envs share: spaces, seeding, rendering over one ``Simulator``."""
+
+    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v0", "is_parallelizable": True}
+
+    def _setup(self, render_mode: str | None, config: dict) -> None:
+        if render_mode not in (None, *RENDER_MODES):
+            raise ValueError(f"render_mode={render_mode!r} is invalid: expected None or one of {RENDER_MODES}")
+        self.render_mode = render_mode
+        self.config = EnvConfig.from_kwargs(**config)
+        self.sim = Simulator(self.config, num_envs=1, nthread=1)
+        self.possible_agents = [MOVER, LOOKER]
+        obs_space = observation_space(self.config)
+        self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
+        self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
+        self._viewer = HumanViewer() if render_mode == "human" else None
+
+    def observation_space(self, agent):
+        """The observation space of ``agent`` (the same object on every call)."""
+        return self.observation_spaces[self._known(agent)]
+
+    def action_space(self, agent):
+        """The action space of ``agent`` (the same object on every call)."""
+        return self.action_spaces[self._known(agent)]
+
+    def render(self):
+        """``rgb_array``: the bird's-eye map (240x320x3); ``human``: MuJoCo's viewer."""
+        if self.render_mode is None:
+            import gymnasium
+
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if self.render_mode == "rgb_array":
+            return self.sim.render_map(0)
+        self._viewer.show(self.sim)
+        return None
+
+    def close(self):
+        """Release the renderer and close the viewer."""
+        if self._viewer is not None:
+            self._viewer.close()
+        self.sim.close()
+
+    def _observe_now(self) -> dict:
+        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
+
+    def _known(self, agent):
+        if agent not in self.possible_agents:
+            raise ValueError(f"unknown agent {agent!r}: expected one of {self.possible_agents}")
+        return agent
+
+
+class raw_env(_Adapter, AECEnv):  # noqa: N801 (PettingZoo's naming convention)
+    """The active-perception room as a PettingZoo AEC env.
+
+    Description:
+        A differential-drive robot must reach a red box in a room where green, yellow and blue
+        boxes hide it. ``mover_0`` drives the base; ``looker_0`` pans the camera. They act in
+        turns: the mover moves (the wheels run for one control period), then the looker sees
+        the result and turns the camera (no time passes), then the mover sees that view.
+
+    Action Space:
+        ``mover_0``: ``Discrete(3)`` 0 turn left, 1 turn right, 2 forward.
+        ``looker_0``: ``Discrete(3)`` 0 pan left, 1 hold, 2 pan right (``pan_step`` degrees).
+
+    Observation Space:
+        ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the
+        first-person camera image and the camera's pan angle (radians, relative to the
+        heading). The looker observes the state after the move, the mover after the look.
+
+    Rewards:
+        The mover gets ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which it reaches the
+        goal, else 0. The looker gets the same (``looker_reward='shared'``) or 0 (``'none'``).
+
+    Starting State:
+        Seeded per episode: the robot on the west side, heading within 90 degrees of the
+        goal's bearing, the goal on the east side, ``num_obstacles`` occluders in between,
+        the camera facing forward.
+
+    Episode End:
+        Terminated at the end of the cycle in which the robot reaches the goal; truncated at
+        the end of cycle ``max_cycles``.
+
+    Arguments:
+        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+
+    Version History:
+        v0: first release.
+    """
+
+    def __init__(self, render_mode: str | None = None, **config):
+        AECEnv.__init__(self)
+        self._setup(render_mode, config)
+        self.agents = []
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> None:
+        """Start an episode; ``seed`` fixes its layout (later unseeded resets continue the stream)."""
+        self.sim.reset(seeds=None if seed is None else [seed])
+        self.agents = list(self.possible_agents)
+        self.rewards = dict.fromkeys(self.agents, 0.0)
+        self._cumulative_rewards = dict.fromkeys(self.agents, 0.0)
+        self.terminations = dict.fromkeys(self.agents, False)
+        self.truncations = dict.fromkeys(self.agents, False)
+        self.infos = {agent: {} for agent in self.agents}
+        obs = self._observe_now()
+        self._obs = {MOVER: obs, LOOKER: obs}
+        self._pending = (False, False)
+        self.agent_selection = MOVER
+        if self.render_mode == "human":
+            self.render()
+
+    def observe(self, agent):
+        """The latest observation of ``agent``."""
+        return self._obs[self._known(agent)]
+
+    def step(self, action) -> None:
+        """Apply the selected agent's action (``None`` for an agent whose episode is over)."""
+        agent = self.agent_selection
+        if self.terminations[agent] or self.truncations[agent]:
+            self._was_dead_step(action)
+            return
+        action = check_action(agent, action, self.action_spaces[agent])
+        self._cumulative_rewards[agent] = 0.0
+        if agent == MOVER:
+            result = self.sim.move(np.array([action]))
+            reward = float(result.reward[0])
+            self.rewards = {MOVER: reward, LOOKER: reward if self.config.looker_reward == "shared" else 0.0}
+            self._pending = (bool(result.terminated[0]), bool(result.truncated[0]))
+            self._obs[LOOKER] = self._observe_now()
+            self.agent_selection = LOOKER
+        else:
+            self.sim.look(np.array([action]))
+            self.rewards = dict.fromkeys(self.agents, 0.0)
+            self._obs[MOVER] = self._observe_now()
+            terminated, truncated = self._pending
+            self.terminations = dict.fromkeys(self.agents, terminated)
+            self.truncations = dict.fromkeys(self.agents, truncated)
+            self.agent_selection = MOVER
+        self._accumulate_rewards()
+        if self.render_mode == "human":
+            self.render()
+
+
+class parallel_env(_Adapter, ParallelEnv):  # noqa: N801 (PettingZoo's naming convention)
+    """The active-perception room as a PettingZoo parallel env.
+
+    Both agents act on the same observation; the look is applied after the move, and both
+    then observe the result. Spaces, rewards, episode end and arguments are those of
+    :class:`raw_env`.
+    """
+
+    def __init__(self, render_mode: str | None = None, **config):
+        self._setup(render_mode, config)
+        self.agents = []
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode; returns ``(observations, infos)``."""
+        self.sim.reset(seeds=None if seed is None else [seed])
+        self.agents = list(self.possible_agents)
+        obs = self._observe_now()
+        if self.render_mode == "human":
+            self.render()
+        return {agent: obs for agent in self.agents}, {agent: {} for agent in self.agents}
+
+    def step(self, actions: dict):
+        """One cycle: the mover's action, then the looker's; returns PettingZoo's five dicts."""
+        if not self.agents:
+            raise RuntimeError("step() after the episode ended: call reset()")
+        unknown = sorted(set(actions) - set(self.agents))
+        missing = sorted(set(self.agents) - set(actions))
+        if unknown or missing:
+            raise ValueError(f"actions must name exactly {self.agents}; unknown {unknown}, missing {missing}")
+        move = check_action(MOVER, actions[MOVER], self.action_spaces[MOVER])
+        look = check_action(LOOKER, actions[LOOKER], self.action_spaces[LOOKER])
+        result = self.sim.move(np.array([move]))
+        self.sim.look(np.array([look]))
+        obs = self._observe_now()
+        reward = float(result.reward[0])
+        rewards = {MOVER: reward, LOOKER: reward if self.config.looker_reward == "shared" else 0.0}
+        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
+        agents = self.agents
+        if terminated or truncated:
+            self.agents = []
+        if self.render_mode == "human":
+            self.render()
+        return (
+            {agent: obs for agent in agents},
+            rewards,
+            dict.fromkeys(agents, terminated),
+            dict.fromkeys(agents, truncated),
+            {agent: {} for agent in agents},
+        )
+
+
+def env(render_mode: str | None = None, **config):
+    """The AEC env wrapped in PettingZoo's order-enforcing wrapper (the usual entry point)."""
+    return wrappers.OrderEnforcingWrapper(raw_env(render_mode=render_mode, **config))

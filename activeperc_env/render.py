@@ -1,0 +1,167 @@
+"""Offscreen rendering of many simulations: first-person views drawn as tiles of one buffer.
+
+One GL context and one ``MjrContext`` serve every view. Each view is drawn into its own tile
+(viewport) of the offscreen buffer and the whole buffer is read back once per batch, which is
+far cheaper than one read-back per view. Shadows, reflections, skybox and multisampling are
+off: they cost most of the frame time and carry nothing the agents need.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from activeperc_env import names
+from activeperc_env.gl import gl_context
+
+MAX_BUFFER = 4096  # largest offscreen side we ask of the GL driver
+MAP_SIZE = (320, 240)  # width, height of the bird's-eye map
+CONE_LENGTH = 1.2  # metres of view cone drawn on the map
+
+
+class TiledRenderer:
+    """Renders first-person views of many simulations and bird's-eye maps of one.
+
+    Args:
+        model: the compiled scene (its offscreen buffer size is set here).
+        width, height: size of one first-person view in pixels.
+        max_views: the most views one ``render`` call draws.
+    """
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int):
+        self.width, self.height = width, height
+        self.cols = max(1, min(max_views, MAX_BUFFER // width))
+        self.rows = max(1, min(math.ceil(max_views / self.cols), MAX_BUFFER // height))
+        buf_w = max(self.cols * width, MAP_SIZE[0])
+        buf_h = max(self.rows * height, MAP_SIZE[1])
+        model.vis.global_.offwidth = buf_w
+        model.vis.global_.offheight = buf_h
+        self._model = model
+        self._gl = None
+        self._gl = gl_context(buf_w, buf_h)
+        self._gl.make_current()
+        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
+        self._scene = mujoco.MjvScene(model, maxgeom=200)
+        for flag in (
+            mujoco.mjtRndFlag.mjRND_SHADOW,
+            mujoco.mjtRndFlag.mjRND_REFLECTION,
+            mujoco.mjtRndFlag.mjRND_SKYBOX,
+        ):
+            self._scene.flags[flag] = 0
+        self._data = mujoco.MjData(model)
+        self._eye_opt = mujoco.MjvOption()
+        self._eye_opt.geomgroup[names.ROBOT_GROUP] = 0
+        self._map_opt = mujoco.MjvOption()
+        self._eye = _fixed_camera(model, names.EYE_CAMERA)
+        self._map = _fixed_camera(model, names.MAP_CAMERA)
+        self._pixels = np.empty(buf_h * buf_w * 3, dtype=np.uint8)  # read-back buffer
+
+    def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """First-person views of the simulations whose states are given.
+
+        Args:
+            qpos: (n, nq) joint positions.
+            mocap_pos: (n, nmocap, 3) positions of the goal and occluders.
+            out: optional (n, height, width, 3) uint8 array to write into.
+
+        Returns:
+            (n, height, width, 3) uint8 images, top row first.
+        """
+        n = len(qpos)
+        if out is None:
+            out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
+        self._gl.make_current()
+        per_pass = self.cols * self.rows
+        for first in range(0, n, per_pass):
+            count = min(per_pass, n - first)
+            for k in range(count):
+                self._pose(qpos[first + k], mocap_pos[first + k])
+                mujoco.mjv_updateScene(
+                    self._model, self._data, self._eye_opt, None, self._eye,
+                    mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+                )
+                row, col = divmod(k, self.cols)
+                rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
+                mujoco.mjr_render(rect, self._scene, self._ctx)
+            used_rows = math.ceil(count / self.cols)
+            used_cols = self.cols if used_rows > 1 else count
+            area = mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
+            pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
+            mujoco.mjr_readPixels(pixels, None, area, self._ctx)
+            # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom
+            tiles = pixels.reshape(used_rows, self.height, used_cols, self.width, 3)
+            tiles = tiles[:, ::-1].transpose(0, 2, 1, 3, 4).reshape(-1, self.height, self.width, 3)
+            out[first : first + count] = tiles[:count]
+        return out
+
+    def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray, fov: float) -> np.ndarray:
+        """Bird's-eye map of one simulation, with the camera's view cone drawn in.
+
+        Args:
+            qpos: (nq,) joint positions.
+            mocap_pos: (nmocap, 3) positions of the goal and occluders.
+            fov: horizontal field of view of the robot's camera, in degrees.
+
+        Returns:
+            (240, 320, 3) uint8 image, north (+y) up.
+        """
+        self._gl.make_current()
+        self._pose(qpos, mocap_pos)
+        mujoco.mjv_updateScene(
+            self._model, self._data, self._map_opt, None, self._map,
+            mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+        )
+        self._add_view_cone(fov)
+        width, height = MAP_SIZE
+        rect = mujoco.MjrRect(0, 0, width, height)
+        mujoco.mjr_render(rect, self._scene, self._ctx)
+        pixels = np.empty((height, width, 3), dtype=np.uint8)
+        mujoco.mjr_readPixels(pixels, None, rect, self._ctx)
+        return pixels[::-1].copy()
+
+    def close(self) -> None:
+        """Release the GL resources."""
+        if self._gl is not None:
+            self._ctx.free()
+            self._gl.free()
+            self._gl = None
+
+    def _pose(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> None:
+        """Load one simulation's positions and compute the poses the renderer reads."""
+        self._data.qpos[:] = qpos
+        self._data.mocap_pos[:] = mocap_pos
+        mujoco.mj_kinematics(self._model, self._data)
+        mujoco.mj_camlight(self._model, self._data)
+
+    def _add_view_cone(self, fov: float) -> None:
+        """Append two lines from the camera along the edges of its horizontal field of view."""
+        cam_id = self._eye.fixedcamid
+        origin = self._data.cam_xpos[cam_id].copy()
+        forward = -self._data.cam_xmat[cam_id].reshape(3, 3)[:, 2]
+        yaw = math.atan2(forward[1], forward[0])
+        for edge in (-0.5, 0.5):
+            if self._scene.ngeom >= self._scene.maxgeom:
+                return
+            angle = yaw + math.radians(fov) * edge
+            tip = origin + CONE_LENGTH * np.array([math.cos(angle), math.sin(angle), 0.0])
+            geom = self._scene.geoms[self._scene.ngeom]
+            mujoco.mjv_initGeom(
+                geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.zeros(9),
+                np.array([1.0, 0.55, 0.0, 1.0], dtype=np.float32),
+            )
+            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, origin, tip)
+            self._scene.ngeom += 1
+
+    def __del__(self):
+        self.close()
+
+
+def _fixed_camera(model: mujoco.MjModel, name: str) -> mujoco.MjvCamera:
+    """An ``MjvCamera`` that looks through the model's named camera."""
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
+    cam.fixedcamid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+    return cam
