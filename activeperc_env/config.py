@@ -23,7 +23,7 @@ class EnvConfig:
     """Height of the first-person image, in pixels."""
     num_obstacles: int = 3
     """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
-    max_cycles: int = 100
+    max_cycles: int = 150
     """Cycles (one move and one look each) before the episode is truncated."""
     pan_range: float = 120.0
     """The camera pans within [-pan_range, +pan_range] degrees of the robot's heading."""

@@ -95,7 +95,7 @@ class Simulator:
         ids = self._as_ids(ids)
         if seeds is not None:
             seeds = np.broadcast_to(np.asarray(seeds, dtype=np.int64), ids.shape)
-            for i, seed in zip(ids, seeds):
+            for i, seed in zip(ids, seeds, strict=True):
                 self._rngs[i] = np.random.default_rng(int(seed))
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles

@@ -1,0 +1,176 @@
+"""The batched core: one episode through every API, the paper's cycle, reward and reset."""
+
+import gymnasium
+import numpy as np
+import pytest
+from conftest import drive_to_goal
+
+import activeperc_env
+from activeperc_env import LOOKER, MOVER, EnvConfig, Simulator
+
+SEED = 7
+CYCLES = 25
+
+
+def _actions(n=CYCLES):
+    rng = np.random.default_rng(123)
+    return rng.integers(0, 3, size=(n, 2))
+
+
+def test_same_seed_same_episode_through_every_api():
+    actions = _actions()
+    sim = Simulator(num_envs=3)
+    sim.reset(seeds=[SEED, SEED + 1, SEED])
+    aec = activeperc_env.env()
+    aec.reset(seed=SEED)
+    par = activeperc_env.parallel_env()
+    par_obs, _ = par.reset(seed=SEED)
+    joint = gymnasium.make("activeperc/Joint-v0")
+    joint_obs, _ = joint.reset(seed=SEED)
+    first = sim.render()
+    for obs in (aec.observe(MOVER), par_obs[MOVER], joint_obs):
+        np.testing.assert_array_equal(obs["image"], first[0])
+    np.testing.assert_array_equal(first[0], first[2])
+    assert not np.array_equal(first[0], first[1]), "different seeds gave the same layout"
+
+    for move, look in actions:
+        sim.move(np.array([move] * 3))
+        s_bar = sim.render()
+        sim.look(np.array([look] * 3))
+        s_next = sim.render()
+        aec.step(int(move))
+        np.testing.assert_array_equal(aec.observe(LOOKER)["image"], s_bar[0])
+        aec.step(int(look))
+        np.testing.assert_array_equal(aec.observe(MOVER)["image"], s_next[0])
+        np.testing.assert_array_equal(aec.observe(MOVER)["pan"], sim.pan()[0])
+        par_obs, *_ = par.step({MOVER: int(move), LOOKER: int(look)})
+        np.testing.assert_array_equal(par_obs[MOVER]["image"], s_next[0])
+        joint_obs, *_ = joint.step(int(3 * move + look))
+        np.testing.assert_array_equal(joint_obs["image"], s_next[0])
+        np.testing.assert_array_equal(s_next[0], s_next[2])
+
+
+def test_physics_is_identical_at_any_batch_size_and_thread_count():
+    actions = _actions()
+    one = Simulator(num_envs=1, nthread=1)
+    many = Simulator(num_envs=8, nthread=2)
+    one.reset(seeds=[SEED])
+    many.reset(seeds=np.full(8, SEED))
+    for move, _ in actions:
+        one.move(np.array([move]))
+        many.move(np.full(8, move))
+    xy, heading, _ = one.pose(0)
+    for i in range(8):
+        xy_i, heading_i, _ = many.pose(i)
+        np.testing.assert_array_equal(xy, xy_i)
+        assert heading == heading_i
+
+
+def test_looker_never_moves_the_base_and_mover_never_turns_the_camera():
+    sim = Simulator(num_envs=4)
+    sim.reset(seeds=np.arange(4))
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        pans = sim.pan().copy()
+        sim.move(rng.integers(0, 3, 4))
+        np.testing.assert_array_equal(sim.pan(), pans)
+        poses = [sim.pose(i)[:2] for i in range(4)]
+        sim.look(rng.integers(0, 3, 4))
+        for i in range(4):
+            np.testing.assert_array_equal(sim.pose(i)[0], poses[i][0])
+            assert sim.pose(i)[1] == poses[i][1]
+        if sim.done.any():
+            sim.reset(np.flatnonzero(sim.done))
+
+
+def test_pan_moves_by_step_and_stays_in_range():
+    config = EnvConfig(pan_step=30, pan_range=60)
+    sim = Simulator(config)
+    sim.reset(seeds=[0])
+    sim.look([0])
+    assert np.isclose(sim.pan()[0, 0], np.radians(30), atol=1e-6)
+    for _ in range(5):
+        sim.look([0])
+    assert np.isclose(sim.pan()[0, 0], np.radians(60), atol=1e-6)
+    sim.look([1])
+    assert np.isclose(sim.pan()[0, 0], np.radians(60), atol=1e-6)
+    for _ in range(6):
+        sim.look([2])
+    assert np.isclose(sim.pan()[0, 0], -np.radians(60), atol=1e-6)
+
+
+def test_scripted_controller_reaches_goal_and_reward_matches_formula():
+    config = EnvConfig(num_obstacles=0)
+    sim = Simulator(config, num_envs=1)
+    for seed in range(5):
+        sim.reset(seeds=[seed])
+        rewards = drive_to_goal(sim)
+        cycle, reward = rewards[-1]
+        assert sim.done[0]
+        assert cycle < config.max_cycles / 2, "a good policy should need well under half of max_cycles"
+        assert reward == pytest.approx(1 - 0.2 * cycle / config.max_cycles, abs=1e-6)
+        assert all(r == 0.0 for _, r in rewards[:-1])
+
+
+def test_truncation_at_max_cycles_with_zero_reward():
+    sim = Simulator(EnvConfig(max_cycles=5))
+    sim.reset(seeds=[0])
+    for t in range(5):
+        result = sim.move([0])  # turning in place never reaches the goal
+        assert result.reward[0] == 0.0
+        assert result.truncated[0] == (t == 4)
+        assert not result.terminated[0]
+    with pytest.raises(RuntimeError, match="reset"):
+        sim.move([0])
+
+
+def test_partial_reset_leaves_other_rooms_alone():
+    sim = Simulator(num_envs=3)
+    sim.reset(seeds=[1, 2, 3])
+    sim.move([2, 2, 2])
+    before = [sim.pose(i) for i in range(3)]
+    sim.reset(ids=[1], seeds=[9])
+    assert sim.cycle.tolist() == [1, 0, 1]
+    for i in (0, 2):
+        np.testing.assert_array_equal(sim.pose(i)[0], before[i][0])
+    other = Simulator(num_envs=1)
+    other.reset(seeds=[9])
+    np.testing.assert_array_equal(sim.render(ids=[1]), other.render())
+
+
+def test_unseeded_resets_continue_the_seeded_stream():
+    a, b = Simulator(), Simulator()
+    a.reset(seeds=[5])
+    b.reset(seeds=[5])
+    a.reset()
+    b.reset()
+    np.testing.assert_array_equal(a.goal_xy(), b.goal_xy())
+    c = Simulator()
+    c.reset(seeds=[5])
+    assert not np.array_equal(a.goal_xy(), c.goal_xy())
+
+
+@pytest.mark.parametrize("bad", [3, -1, [0, 1], 1.5, "left"])
+def test_bad_actions_name_the_agent_and_its_space(bad):
+    sim = Simulator()
+    sim.reset(seeds=[0])
+    with pytest.raises(ValueError, match=r"mover.*Discrete\(3\)"):
+        sim.move(np.array(bad) if not isinstance(bad, str) else bad)
+    with pytest.raises(ValueError, match=r"looker.*Discrete\(3\)"):
+        sim.look(np.array(bad) if not isinstance(bad, str) else bad)
+
+
+def test_bad_num_envs_and_ids_are_named():
+    with pytest.raises(ValueError, match="num_envs=0"):
+        Simulator(num_envs=0)
+    sim = Simulator(num_envs=2)
+    with pytest.raises(ValueError, match=r"\[5\]"):
+        sim.reset(ids=[5])
+
+
+def test_occluders_in_use_and_parked():
+    sim = Simulator(EnvConfig(num_obstacles=2))
+    sim.reset(seeds=[0])
+    occluders = sim.occluders_xy()
+    assert occluders.shape == (2, 2)
+    assert (np.abs(occluders[:, 0]) < 3).all() and (np.abs(occluders[:, 1]) < 2).all()

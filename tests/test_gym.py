@@ -1,0 +1,38 @@
+"""The Gymnasium single-agent views pass Gymnasium's checker and map actions as documented."""
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import activeperc_env  # noqa: F401  (registers the envs)
+
+
+@pytest.mark.parametrize("env_id", ["activeperc/Joint-v0", "activeperc/FixedForward-v0"])
+def test_check_env(env_id):
+    env = gymnasium.make(env_id)
+    check_env(env.unwrapped, skip_render_check=False)
+
+
+def test_joint_action_is_move_times_three_plus_look():
+    env = gymnasium.make("activeperc/Joint-v0").unwrapped
+    env.reset(seed=0)
+    env.step(3 * 2 + 0)  # forward, pan left
+    assert np.isclose(env.sim.pan()[0, 0], np.radians(env.config.pan_step))
+    with pytest.raises(ValueError, match="joint agent.*Discrete\\(9\\)"):
+        env.step(9)
+
+
+def test_fixed_forward_never_pans():
+    env = gymnasium.make("activeperc/FixedForward-v0", fov=100)
+    obs, _ = env.reset(seed=1)
+    for _ in range(10):
+        obs, *_ = env.step(env.action_space.sample())
+        assert obs["pan"][0] == 0.0
+    assert env.unwrapped.config.fov == 100
+
+
+def test_rgb_array_render_is_the_map():
+    env = gymnasium.make("activeperc/Joint-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    assert env.render().shape == (240, 320, 3)

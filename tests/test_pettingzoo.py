@@ -1,0 +1,117 @@
+"""PettingZoo's own test suite, turn order, rewards and errors of the AEC and parallel envs."""
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import goal_seeking_move
+from pettingzoo.test import (
+    api_test,
+    max_cycles_test,
+    parallel_api_test,
+    parallel_seed_test,
+    render_test,
+    seed_test,
+)
+from pettingzoo.utils import wrappers
+
+import activeperc_env
+from activeperc_env import LOOKER, MOVER
+
+
+def test_api_test():
+    api_test(activeperc_env.env(), num_cycles=150)
+
+
+def test_parallel_api_test():
+    parallel_api_test(activeperc_env.parallel_env(), num_cycles=150)
+
+
+def test_seed_tests():
+    seed_test(activeperc_env.env, num_cycles=60)
+    parallel_seed_test(activeperc_env.parallel_env, num_cycles=60)
+
+
+def test_max_cycles_test():
+    max_cycles_test(activeperc_env)
+
+
+def test_render_test():
+    render_test(lambda render_mode=None: activeperc_env.env(render_mode=render_mode))
+
+
+def test_env_is_order_enforced_and_agents_alternate():
+    env = activeperc_env.env(max_cycles=3)
+    assert isinstance(env, wrappers.OrderEnforcingWrapper)
+    env.reset(seed=0)
+    order = []
+    for agent in env.agent_iter():
+        order.append(agent)
+        _, _, term, trunc, _ = env.last()
+        env.step(None if term or trunc else 1)
+    assert order == [MOVER, LOOKER] * 3 + [MOVER, LOOKER][: len(order) - 6]
+    assert len(order) == 8
+
+
+@pytest.mark.parametrize("looker_reward, shared", [("shared", True), ("none", False)])
+def test_reward_arrives_after_the_move_and_is_shared_by_config(looker_reward, shared):
+    env = activeperc_env.env(num_obstacles=0, looker_reward=looker_reward)
+    env.reset(seed=3)
+    sim = env.unwrapped.sim
+    probe = activeperc_env.Simulator(sim.config)  # finds the scripted path, then the AEC env replays it
+    probe.reset(seeds=[3])
+    moves = []
+    while not probe.done[0]:
+        moves.append(goal_seeking_move(probe))
+        probe.move([moves[-1]])
+    assert len(moves) < sim.config.max_cycles, "the scripted mover should reach the goal"
+    for move in moves[:-1]:
+        env.step(move)
+        env.step(1)
+    env.step(moves[-1])
+    _, reward, term, _, _ = env.last()
+    expected = 1 - 0.2 * len(moves) / sim.config.max_cycles
+    assert env.agent_selection == LOOKER
+    assert reward == pytest.approx(expected if shared else 0.0)
+    assert not term, "the episode ends at the end of the cycle"
+    env.step(1)
+    assert env.terminations[MOVER] and env.terminations[LOOKER]
+    assert env.last()[1] == pytest.approx(expected), "the mover's last() carries its reward"
+
+
+def test_bad_action_names_agent_and_space():
+    env = activeperc_env.env()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="mover_0.*Discrete"):
+        env.step(5)
+    env.step(0)
+    with pytest.raises(ValueError, match="looker_0.*Discrete"):
+        env.step("pan")
+    par = activeperc_env.parallel_env()
+    par.reset(seed=0)
+    with pytest.raises(ValueError, match="looker_0.*Discrete"):
+        par.step({MOVER: 0, LOOKER: 3})
+    with pytest.raises(ValueError, match="missing"):
+        par.step({MOVER: 0})
+
+
+def test_unknown_agent_is_named():
+    env = activeperc_env.env()
+    with pytest.raises(ValueError, match="cat_0"):
+        env.observation_space("cat_0")
+
+
+def test_rgb_array_map_and_headless_human(monkeypatch):
+    env = activeperc_env.env(render_mode="rgb_array")
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    human = activeperc_env.env(render_mode="human")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        human.reset(seed=0)
+        assert human.render() is None
+        human.step(0)
+    assert sum("display" in str(w.message) for w in caught) == 1

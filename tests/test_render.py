@@ -1,0 +1,59 @@
+"""The tiled renderer draws the same pixels as one view at a time, and the map shows the scene."""
+
+import numpy as np
+
+from activeperc_env import EnvConfig, Simulator
+
+
+def assert_same_view(a, b):
+    """Equal up to the rasteriser's rounding: a view drawn at another framebuffer offset may
+    shift a few pixels' shade by one level, never more."""
+    diff = np.abs(a.astype(int) - b.astype(int))
+    assert diff.max() <= 1
+    assert (diff > 0).mean() < 1e-3
+
+
+def test_tiled_views_equal_single_views():
+    many = Simulator(num_envs=7)
+    many.reset(seeds=np.arange(7))
+    many.move(np.arange(7) % 3)
+    many.look((np.arange(7) + 1) % 3)
+    tiled = many.render()
+    for i in range(7):
+        assert_same_view(many.render(ids=[i])[0], tiled[i])
+
+
+def test_views_span_several_buffer_passes():
+    config = EnvConfig(width=512, height=384)
+    sim = Simulator(config, num_envs=120)  # more tiles than one 4096x4096 buffer holds
+    assert sim.renderer.cols * sim.renderer.rows < 120
+    sim.reset(seeds=np.arange(120) % 3)
+    images = sim.render()
+    assert_same_view(images[0], images[117])
+    assert not np.array_equal(images[0], images[1])
+
+
+def test_goal_is_red_and_fov_widens_the_view():
+    narrow, wide = Simulator(EnvConfig(fov=60, num_obstacles=0)), Simulator(EnvConfig(fov=100, num_obstacles=0))
+    reds = []
+    for sim in (narrow, wide):
+        sim.reset(seeds=[0])
+        xy, heading, _ = sim.pose()
+        to_goal = sim.goal_xy() - xy
+        bearing = np.arctan2(to_goal[1], to_goal[0]) - heading
+        steps = int(np.round(np.degrees(bearing) / sim.config.pan_step))
+        for _ in range(abs(steps)):  # point the camera at the goal
+            sim.look([0 if steps > 0 else 2])
+        image = sim.render()[0].astype(int)
+        reds.append(((image[..., 0] > 120) & (image[..., 1] < 60) & (image[..., 2] < 60)).sum())
+    assert reds[0] > 0 and reds[1] > 0
+    assert reds[0] > reds[1], "the same goal fills fewer pixels of a wider view"
+
+
+def test_map_shows_goal_and_occluders():
+    sim = Simulator()
+    sim.reset(seeds=[0])
+    image = sim.render_map().astype(int)
+    red = (image[..., 0] > 150) & (image[..., 1] < 60) & (image[..., 2] < 60)
+    blue = (image[..., 2] > 150) & (image[..., 0] < 80)
+    assert red.sum() > 50 and blue.sum() > 50

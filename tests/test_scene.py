@@ -1,0 +1,53 @@
+"""The scene compiles and its physics stays sane under random control."""
+
+import mujoco
+import numpy as np
+
+from activeperc_env import names
+from activeperc_env.config import EnvConfig
+from activeperc_env.core import load_model
+from activeperc_env.layout import sample_layout
+
+
+def test_every_named_element_exists():
+    model = load_model(EnvConfig())
+    for obj, name in [
+        (mujoco.mjtObj.mjOBJ_JOINT, names.ROOT_JOINT),
+        (mujoco.mjtObj.mjOBJ_JOINT, names.PAN_JOINT),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, names.LEFT_WHEEL),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, names.RIGHT_WHEEL),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, names.PAN_ACTUATOR),
+        (mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA),
+        (mujoco.mjtObj.mjOBJ_CAMERA, names.MAP_CAMERA),
+        (mujoco.mjtObj.mjOBJ_BODY, names.GOAL_BODY),
+        *[(mujoco.mjtObj.mjOBJ_BODY, b) for b in names.OCCLUDER_BODIES],
+    ]:
+        assert mujoco.mj_name2id(model, obj, name) >= 0, name
+
+
+def test_fov_is_converted_to_vertical():
+    config = EnvConfig(fov=100, width=80, height=60)
+    model = load_model(config)
+    eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
+    fovy = np.radians(model.cam_fovy[eye])
+    assert np.isclose(2 * np.arctan(np.tan(fovy / 2) * 80 / 60), np.radians(100))
+
+
+def test_ten_seconds_of_random_control_without_warnings_or_nan():
+    model = load_model(EnvConfig())
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    layout = sample_layout(rng, 3)
+    data.qpos[:2] = layout.start_xy
+    for k, xy in enumerate(layout.occluders_xy):
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.OCCLUDER_BODIES[k])
+        data.mocap_pos[model.body_mocapid[body], :2] = xy
+    steps = int(10.0 / model.opt.timestep)
+    for step in range(steps):
+        if step % 20 == 0:
+            data.ctrl[:2] = rng.uniform(-40, 40, size=2)
+            data.ctrl[2] = rng.uniform(-2, 2)
+        mujoco.mj_step(model, data)
+    assert [w.number for w in data.warning] == [0] * len(data.warning)
+    assert np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
+    assert abs(data.qpos[2] - names.WHEEL_RADIUS) < 0.02, "the robot left the floor"
