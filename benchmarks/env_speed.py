@@ -1,0 +1,271 @@
+"""Speed of the active-perception room against MiniWorld, measured in one run on this machine.
+
+What it measures (random actions throughout, each figure timed for ``--seconds`` after a warm-up):
+
+1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's step and
+   the looker's step (each renders one 80x60 observation); the env is reset when an episode ends.
+2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
+   over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (two renders), then
+   resetting and rendering the rooms that are done.
+3. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
+   (one render each), reset when an episode ends. It runs in a child process so that a GL failure
+   there cannot stop our measurements; if it cannot run, the reason is printed instead.
+4. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
+   MiniWorld, the core at N=64 at least 3x MiniWorld.
+
+Run it from the repository root (MiniWorld comes with the ``bench`` extra,
+``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
+
+    python benchmarks/env_speed.py              # 5 s per measurement
+    python benchmarks/env_speed.py --seconds 2 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+CORE_SIZES = (1, 16, 64)
+AEC_GOAL = 1.0  # the AEC env must reach this multiple of MiniWorld's steps/s
+CORE_GOAL = 3.0  # the core at N=64 must reach this multiple of MiniWorld's steps/s
+PEER_ENV = "MiniWorld-OneRoom-v0"
+PEER_TAG = "MINIWORLD_RESULT "  # prefix of the child process's result line
+OBS_WIDTH, OBS_HEIGHT = 80, 60
+
+
+def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
+    """Call ``step`` for ``warmup`` seconds untimed, then for ``seconds``; return units per second.
+
+    ``step`` returns how many units (cycles or steps) one call did.
+    """
+    end = time.perf_counter() + warmup
+    while time.perf_counter() < end:
+        step()
+    units = 0
+    start = time.perf_counter()
+    while True:
+        units += step()
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return units / elapsed
+
+
+def machine_info() -> dict:
+    """CPU count, platform and Python version of this machine."""
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return {
+        "cpu_count": os.cpu_count(),
+        "usable_cpus": usable,
+        "processor": platform.processor() or platform.machine(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
+    }
+
+
+def current_gl_renderer() -> str:
+    """The renderer string of the current GL context (e.g. llvmpipe), or '?' when it cannot be read."""
+    try:
+        from OpenGL import GL
+
+        return GL.glGetString(GL.GL_RENDERER).decode()
+    except Exception:  # only informative
+        return "?"
+
+
+def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
+    """Cycles/s of the PettingZoo AEC env with random actions; also returns the GL renderer's name."""
+    import activeperc_env
+
+    env = activeperc_env.env()
+    env.reset(seed=seed)
+    for i, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(seed + i)
+    gl_renderer = current_gl_renderer()
+
+    def cycle() -> int:
+        for agent in env.possible_agents:  # the mover, then the looker
+            env.step(env.action_space(agent).sample())
+        if any(env.terminations.values()) or any(env.truncations.values()):
+            env.reset()  # unseeded: continues the seeded stream
+        return 1
+
+    try:
+        return timed_rate(cycle, seconds, warmup), gl_renderer
+    finally:
+        env.close()
+
+
+def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
+    """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
+    import numpy as np
+
+    import activeperc_env
+
+    sim = activeperc_env.Simulator(num_envs=num_envs)
+    sim.reset(seeds=seed + np.arange(num_envs))
+    sim.render()
+    rng = np.random.default_rng(seed)
+
+    def cycle() -> int:
+        sim.move(rng.integers(0, 3, num_envs))
+        sim.render()
+        sim.look(rng.integers(0, 3, num_envs))
+        sim.render()
+        done = np.flatnonzero(sim.done)
+        if done.size:
+            sim.reset(done)
+            sim.render(done)
+        return num_envs
+
+    try:
+        return timed_rate(cycle, seconds, warmup)
+    finally:
+        sim.close()
+
+
+def miniworld_worker(seconds: float, warmup: float, seed: int) -> None:
+    """Child-process side: time MiniWorld's raw steps and print one tagged JSON line."""
+    import pyglet
+
+    pyglet.options["headless"] = True  # before miniworld imports pyglet's GL
+    import gymnasium
+    import miniworld
+
+    env = gymnasium.make(PEER_ENV, obs_width=OBS_WIDTH, obs_height=OBS_HEIGHT)
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    try:
+        gl_renderer = pyglet.gl.gl_info.get_renderer()
+    except Exception:  # only informative
+        gl_renderer = "?"
+
+    def step() -> int:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+        return 1
+
+    rate = timed_rate(step, seconds, warmup)
+    env.close()
+    result = {
+        "steps_per_s": rate,
+        "version": miniworld.__version__,
+        "obs_shape": list(obs.shape),
+        "gl_renderer": gl_renderer,
+    }
+    print(PEER_TAG + json.dumps(result), flush=True)
+
+
+def bench_miniworld(seconds: float, warmup: float, seed: int) -> tuple[dict | None, str | None]:
+    """Run :func:`miniworld_worker` in a child process; returns ``(result, None)`` or ``(None, why)``."""
+    command = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--miniworld-worker",
+        "--seconds",
+        str(seconds),
+        "--warmup",
+        str(warmup),
+        "--seed",
+        str(seed),
+    ]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=seconds + warmup + 300)
+    except subprocess.TimeoutExpired:
+        return None, "the MiniWorld process did not finish in time"
+    for line in done.stdout.splitlines():
+        if line.startswith(PEER_TAG):
+            return json.loads(line[len(PEER_TAG) :]), None
+    tail = [line.strip() for line in (done.stderr.strip() or done.stdout.strip()).splitlines()[-3:]]
+    why = f"the MiniWorld process exited with status {done.returncode}"
+    if any("No module named 'miniworld'" in line for line in tail):
+        why += " (miniworld is not installed: pip install miniworld==2.1.0, the project's bench extra)"
+    return None, why + (": " + " | ".join(tail) if tail else "")
+
+
+def summarise(ours: dict[str, float], peer: float | None) -> tuple[dict[str, float], dict[str, bool]]:
+    """Ratios ours/MiniWorld for every figure, and the two goals (empty when MiniWorld is missing)."""
+    if not peer:
+        return {}, {}
+    ratios = {name: rate / peer for name, rate in ours.items()}
+    goals = {
+        f"aec >= {AEC_GOAL:g}x MiniWorld": ratios["aec"] >= AEC_GOAL,
+        f"core N=64 >= {CORE_GOAL:g}x MiniWorld": ratios["core_n64"] >= CORE_GOAL,
+    }
+    return ratios, goals
+
+
+def main() -> None:
+    """Parse the flags, run every measurement and print the report."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="timed seconds per measurement (5)")
+    parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
+    parser.add_argument("--warmup", type=float, default=1.0, help="untimed seconds before each timing (1)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the resets and the random actions (0)")
+    parser.add_argument("--miniworld-worker", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.miniworld_worker:
+        miniworld_worker(args.seconds, args.warmup, args.seed)
+        return
+
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+
+    machine = machine_info()
+    print("activeperc env speed vs MiniWorld")
+    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
+    print(f"machine: {cpus}, {machine['processor']}")
+    print(f"         {machine['platform']}, Python {machine['python']}")
+    print(f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed}")
+    print()
+
+    ours: dict[str, float] = {}
+    ours["aec"], gl_renderer = bench_aec(args.seconds, args.warmup, args.seed)
+    machine["gl_renderer"] = gl_renderer
+    print(f"ours  {'AEC env activeperc_env.env()':<34}{ours['aec']:9.1f} cycles/s   (GL: {gl_renderer})")
+    for n in CORE_SIZES:
+        ours[f"core_n{n}"] = bench_core(n, args.seconds, args.warmup, args.seed)
+        label = f"core Simulator(num_envs={n})"
+        print(f"ours  {label:<34}{ours[f'core_n{n}']:9.1f} cycles/s   (2 renders each)")
+
+    peer, why = bench_miniworld(args.seconds, args.warmup, args.seed)
+    peer_rate = peer["steps_per_s"] if peer else None
+    if peer:
+        label = f"MiniWorld {peer['version']} {PEER_ENV}"
+        shape = "x".join(map(str, peer["obs_shape"]))
+        print(f"peer  {label:<34}{peer_rate:9.1f} steps/s    (obs {shape}, GL: {peer['gl_renderer']})")
+    else:
+        print(f"peer  MiniWorld {PEER_ENV}: NOT MEASURED, {why}")
+    print()
+
+    ratios, goals = summarise(ours, peer_rate)
+    if ratios:
+        print("ratio ours/MiniWorld: " + ", ".join(f"{name} {r:.2f}x" for name, r in ratios.items()))
+        for goal, met in goals.items():
+            print(f"goal  {goal}: {'MET' if met else 'NOT MET'}")
+    else:
+        print("ratios and goals: unknown, MiniWorld could not be measured")
+
+    if args.json:
+        report = {
+            "machine": machine,
+            "seconds": args.seconds,
+            "warmup": args.warmup,
+            "seed": args.seed,
+            "ours_cycles_per_s": ours,
+            "miniworld": peer,
+            "miniworld_error": why,
+            "ratios": ratios,
+            "goals_met": goals,
+        }
+        print(json.dumps(report))
+
+
+if __name__ == "__main__":
+    main()
