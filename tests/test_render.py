@@ -1,16 +1,9 @@
 """The tiled renderer draws the same pixels as one view at a time, and the map shows the scene."""
 
 import numpy as np
+from conftest import assert_same_view
 
 from activeperc_env import EnvConfig, Simulator
-
-
-def assert_same_view(a, b):
-    """Equal up to the rasteriser's rounding: a view drawn at another framebuffer offset may
-    shift a few pixels' shade by one level, never more."""
-    diff = np.abs(a.astype(int) - b.astype(int))
-    assert diff.max() <= 1
-    assert (diff > 0).mean() < 1e-3
 
 
 def test_tiled_views_equal_single_views():
