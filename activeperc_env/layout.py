@@ -18,7 +18,8 @@ START_X = (-ROOM_HALF_X + 0.4, -ROOM_HALF_X + 1.0)
 GOAL_X = (ROOM_HALF_X - 1.0, ROOM_HALF_X - 0.4)
 SIDE_Y = ROOM_HALF_Y - 0.5
 HEADING_SPREAD = np.pi / 2  # the start heading is within +-90 degrees of the goal's bearing
-MAX_TRIES = 1000
+MAX_TRIES = 1000  # whole-layout draws before giving up
+PLACE_TRIES = 50  # spots tried for one occluder before the draw starts over
 
 
 @dataclass(frozen=True)
@@ -38,9 +39,19 @@ class Layout:
 def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
     """Draw a layout: start on the west side, goal on the east side, occluders on the way.
 
-    The first occluder stands on the line from start to goal, so the goal is hidden from the
-    start whenever there is at least one occluder; the others are spread around that line.
+    The first occluder stands within 0.45 m of the line from start to goal, so the goal is
+    hidden from most starts; the others are spread within 1 m of that line. A draw whose
+    occluders do not fit is redrawn whole from the same stream, so a seed fixes the layout.
     """
+    for _ in range(MAX_TRIES):
+        layout = _draw(rng, num_obstacles)
+        if layout is not None:
+            return layout
+    raise RuntimeError(f"no layout with {num_obstacles} occluders fitted in {MAX_TRIES} draws")
+
+
+def _draw(rng: np.random.Generator, num_obstacles: int) -> Layout | None:
+    """One attempt at a layout; ``None`` when an occluder finds no free spot."""
     start = np.array([rng.uniform(*START_X), rng.uniform(-SIDE_Y, SIDE_Y)])
     goal = np.array([rng.uniform(*GOAL_X), rng.uniform(-SIDE_Y, SIDE_Y)])
     line = goal - start
@@ -49,14 +60,14 @@ def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
     normal = np.array([-line[1], line[0]]) / np.linalg.norm(line)
     occluders: list[np.ndarray] = []
     for i in range(num_obstacles):
-        spread = 0.1 if i == 0 else 1.0
-        for _ in range(MAX_TRIES):
+        spread = 0.45 if i == 0 else 1.0
+        for _ in range(PLACE_TRIES):
             xy = start + rng.uniform(0.35, 0.65) * line + rng.uniform(-spread, spread) * normal
             if _fits(xy, start, goal, occluders):
                 occluders.append(xy)
                 break
         else:
-            raise RuntimeError(f"could not place occluder {i} after {MAX_TRIES} tries")
+            return None
     return Layout(
         start_xy=start,
         heading=heading,

@@ -31,6 +31,7 @@ class _Adapter:
             raise ValueError(f"render_mode={render_mode!r} is invalid: expected None or one of {RENDER_MODES}")
         self.render_mode = render_mode
         self.config = EnvConfig.from_kwargs(**config)
+        self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
         self.possible_agents = [MOVER, LOOKER]
         obs_space = observation_space(self.config)
