@@ -39,8 +39,9 @@ class Layout:
 def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
     """Draw a layout: start on the west side, goal on the east side, occluders on the way.
 
-    The first occluder stands within 0.45 m of the line from start to goal, so the goal is
-    hidden from most starts; the others are spread within 1 m of that line. A draw whose
+    Occluders stand 35-65 % of the way from start to goal (25-75 % for a fourth to sixth), the
+    first within 0.45 m of the line between them, so the goal is hidden from most starts, the
+    others within 1 m of it. A draw whose
     occluders do not fit is redrawn whole from the same stream, so a seed fixes the layout.
     """
     for _ in range(MAX_TRIES):
@@ -61,8 +62,9 @@ def _draw(rng: np.random.Generator, num_obstacles: int) -> Layout | None:
     occluders: list[np.ndarray] = []
     for i in range(num_obstacles):
         spread = 0.45 if i == 0 else 1.0
+        along = (0.35, 0.65) if i < 3 else (0.25, 0.75)  # a fourth to sixth box needs more room
         for _ in range(PLACE_TRIES):
-            xy = start + rng.uniform(0.35, 0.65) * line + rng.uniform(-spread, spread) * normal
+            xy = start + rng.uniform(*along) * line + rng.uniform(-spread, spread) * normal
             if _fits(xy, start, goal, occluders):
                 occluders.append(xy)
                 break
