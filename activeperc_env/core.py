@@ -137,7 +137,7 @@ class Simulator:
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self.cycle[ids] += 1
         robot = self._qpos[ids, self._ids.root : self._ids.root + 2]
-        goal = self._mocap_pos[ids].reshape(len(ids), -1, 3)[:, self._ids.goal, :2]
+        goal = self._mocap_pos[ids].reshape(len(ids), self.model.nmocap, 3)[:, self._ids.goal, :2]
         success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
         frac = self.cycle[ids] / self.config.max_cycles
         reward = np.where(success, 1.0 - 0.2 * frac, 0.0).astype(np.float32)
@@ -164,7 +164,7 @@ class Simulator:
     def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:
         """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8."""
         ids = self._as_ids(ids)
-        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids].reshape(len(ids), -1, 3), out)
+        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids].reshape(len(ids), self.model.nmocap, 3), out)
 
     def pan(self, ids=None) -> np.ndarray:
         """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""
@@ -248,6 +248,8 @@ class _Ids:
 def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:
     """Validate a batch of discrete actions, naming the agent and its action space on error."""
     arr = np.asarray(actions)
+    if arr.size == 0 and len(ids) == 0:
+        return np.zeros(0, dtype=np.int64)
     if arr.shape == () and len(ids) == 1:
         arr = arr.reshape(1)
     if arr.shape != ids.shape or not (np.issubdtype(arr.dtype, np.integer) or arr.dtype == bool):

@@ -174,3 +174,11 @@ def test_occluders_in_use_and_parked():
     occluders = sim.occluders_xy()
     assert occluders.shape == (2, 2)
     assert (np.abs(occluders[:, 0]) < 3).all() and (np.abs(occluders[:, 1]) < 2).all()
+
+
+def test_empty_id_list_is_a_no_op():
+    sim = Simulator(num_envs=2)
+    sim.reset(seeds=[0, 1])
+    assert sim.render(ids=[]).shape == (0, 60, 80, 3)
+    assert sim.pan(ids=[]).shape == (0, 1)
+    assert sim.move([], ids=[]).reward.shape == (0,)

@@ -1,0 +1,267 @@
+"""TorchRL environment: the mover's batched env, with the looker inside its transition.
+
+Design
+------
+One :class:`~activeperc_env.Simulator` holds all ``num_envs`` rooms and is stepped as a whole by
+one :class:`~torchrl.envs.EnvBase` with ``batch_size=[num_envs]``: a ``PettingZooWrapper`` per
+room inside a ``ParallelEnv`` costs about 1 ms of wrapper overhead per agent step plus a process
+per room, while the simulator steps and renders a whole batch in one call.
+
+The paper's mover lives in the MDP whose transition is ``P~ = P^c pi^c P^m`` (eq. 1): the
+looker's policy is part of the mover's environment, and E1 and E2 are the same simulator with a
+different perceptual policy in the loop. So ``step`` takes the mover's action and runs the
+looker inside the cycle::
+
+    move(u_m) -> render s_bar -> looker module -> look(u_c) -> render s'
+
+A mover rollout in E1 or E2 is then an ordinary single-agent TorchRL rollout (``Collector``, GAE
+and A2C apply unchanged) and the looker's part of each cycle (``s_bar``, ``u_c``, its
+log-probability) is recorded next to it. The alternative, two turns per cycle with agent masks,
+doubles the steps and forces masking into every loss; the PettingZoo AEC env keeps that form
+for everyone else.
+
+Contract
+--------
+Keys are grouped per agent; done flags are shared, at the root (shape ``(..., 1)``)::
+
+    ("mover", "observation", "image")  uint8 (H, W, 3)   s: the mover's view (after the look)
+    ("mover", "observation", "pan")    float32 (1,)      camera pan, radians
+    ("mover", "action")                int64 ()          Categorical(3): turn left/right, forward
+    ("mover", "reward"), ("looker", "reward")  float32 (1,)
+    "done", "terminated", "truncated"  bool (1,)
+
+*Looker mode* (a looker module is set, at construction or with :meth:`ActivePerceptionEnv.set_looker`):
+the module is called on a tensordict holding ``("looker", "observation", "image"/"pan")`` (``s_bar``,
+on ``device``) and must write ``("looker", "action")`` (integer, shape ``(n,)`` or ``(n, 1)``) and
+may write more entries, all under ``"looker"`` (e.g. a ``ProbabilisticActor``'s
+``("looker", "action_log_prob")`` and ``("looker", "logits")``). It runs under ``torch.no_grad()``
+and under the caller's exploration type. The looker's record of cycle ``t`` (``s_bar``, action and
+the module's outputs) is written to ``("next", "looker", ...)``; these are observation entries, so
+``step_mdp`` also carries them to the root of the next step and reset writes zeros there: the root
+copies are placeholders, read the record under ``"next"``.
+
+*External mode* (no looker module): the input also carries ``("looker", "action")``
+(Categorical(3), in the action spec), so both actions come from outside (Joint, Fixed_Forward,
+IA2C with its own looker policy). Both agents act on the same ``s``: move, then look, no ``s_bar``
+rendered (PettingZoo ``parallel_env`` semantics). There are no ``("looker", "observation")`` keys.
+
+Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_reset"`` mask, as in
+``step_and_maybe_reset``, ``rollout`` and ``Collector``). Seeding: :meth:`set_seed` gives room ``i``
+its own stream of episode seeds, derived from the base seed and ``i`` only, so two envs seeded alike
+(E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
+in the same layout; ``episode_seeds`` holds each room's current episode seed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
+
+MOVER, LOOKER = "mover", "looker"
+
+
+def make_env(num_envs: int = 1, device="cpu", looker=None, seed: int | None = None, **env_config):
+    """Build the batched TorchRL env over one ``Simulator(num_envs)``.
+
+    Args:
+        num_envs: number of rooms (the env's ``batch_size`` is ``[num_envs]``).
+        device: where observations, rewards and done flags live (images stay uint8).
+        looker: the looker module (looker mode), or ``None`` for external mode (see the module doc).
+        seed: base seed of the rooms' layout streams (same as calling ``env.set_seed(seed)``);
+            give E1 and E2 the same seed to give them the same reset sequence.
+        **env_config: any :class:`~activeperc_env.EnvConfig` field.
+    """
+    env = ActivePerceptionEnv(EnvConfig.from_kwargs(**env_config), num_envs=num_envs, device=device, looker=looker)
+    if seed is not None:
+        env.set_seed(seed)
+    return env
+
+
+class ActivePerceptionEnv(EnvBase):
+    """The active-perception rooms as one batched TorchRL env whose step is one full cycle.
+
+    Args:
+        config: the environment configuration.
+        num_envs: number of rooms.
+        device: device of the output tensors.
+        looker: the looker module, or ``None`` (external mode).
+        nthread: physics threads of the simulator (0: every core).
+    """
+
+    def __init__(self, config: EnvConfig, num_envs: int = 1, device="cpu", looker=None, nthread: int = 0):
+        super().__init__(device=device, batch_size=[num_envs])
+        self.config = config
+        self.num_envs = num_envs
+        self.sim = Simulator(config, num_envs=num_envs, nthread=nthread)
+        self.episode_seeds = np.zeros(num_envs, dtype=np.int64)
+        self._seed_rngs = [np.random.default_rng() for _ in range(num_envs)]
+        self._looker = None
+        self._looker_spec = Composite(shape=self.batch_size, device=self.device)
+        self._make_specs()
+        self.set_looker(looker)
+        self.is_closed = False
+
+    # ------------------------------------------------------------------ specs
+    def _make_specs(self) -> None:
+        n, cfg = self.batch_size, self.config
+        limit = math.radians(cfg.pan_range)
+        self._obs_spec = Composite(
+            image=Bounded(0, 255, (*n, cfg.height, cfg.width, 3), dtype=torch.uint8, device=self.device),
+            pan=Bounded(-limit, limit, (*n, 1), dtype=torch.float32, device=self.device),
+            shape=n,
+            device=self.device,
+        )
+        reward = Unbounded((*n, 1), dtype=torch.float32, device=self.device)
+        self.full_reward_spec = Composite(
+            {MOVER: Composite(reward=reward, shape=n), LOOKER: Composite(reward=reward.clone(), shape=n)},
+            shape=n,
+            device=self.device,
+        )
+        flag = Categorical(2, (*n, 1), dtype=torch.bool, device=self.device)
+        self.full_done_spec = Composite(
+            done=flag, terminated=flag.clone(), truncated=flag.clone(), shape=n, device=self.device
+        )
+
+    def _action_spec(self, agent: str) -> Composite:
+        meanings = MOVER_ACTIONS if agent == MOVER else LOOKER_ACTIONS
+        action = Categorical(len(meanings), self.batch_size, dtype=torch.int64, device=self.device)
+        return Composite(action=action, shape=self.batch_size, device=self.device)
+
+    def _update_specs(self) -> None:
+        n = self.batch_size
+        actions = {MOVER: self._action_spec(MOVER)}
+        observations = {MOVER: Composite(observation=self._obs_spec.clone(), shape=n)}
+        if self._looker is None:
+            actions[LOOKER] = self._action_spec(LOOKER)
+        else:
+            observations[LOOKER] = self._looker_spec.clone()
+        self.full_action_spec = Composite(actions, shape=n, device=self.device)
+        self.full_observation_spec = Composite(observations, shape=n, device=self.device)
+        self.empty_cache()
+
+    # ------------------------------------------------------------------ looker
+    @property
+    def looker(self):
+        """The looker module run inside each step, or ``None`` (external mode)."""
+        return self._looker
+
+    def set_looker(self, module) -> None:
+        """Put ``module`` in the loop (``None``: external mode); the specs are rebuilt.
+
+        The module is dry-run once on zeros (under a forked torch RNG, so seeding is unaffected)
+        to find the entries it writes; they must all lie under ``"looker"``.
+        """
+        if module is None:
+            self._looker = None
+            self._update_specs()
+            return
+        n = self.batch_size
+        fake = TensorDict({LOOKER: {"observation": self._obs_spec.zero()}}, batch_size=n, device=self.device)
+        devices = [self.device] if self.device.type == "cuda" else []
+        with torch.no_grad(), torch.random.fork_rng(devices=devices):
+            out = module(fake.clone())
+        out = fake if out is None else out
+        new = set(out.keys(True, True)) - set(fake.keys(True, True))
+        outside = sorted(str(k) for k in new if not (isinstance(k, tuple) and k[0] == LOOKER))
+        if outside or (LOOKER, "action") not in new:
+            raise ValueError(
+                f"the looker module must write ({LOOKER!r}, 'action') and only entries under {LOOKER!r}; "
+                f"it wrote {sorted(map(str, new))}"
+            )
+        spec = Composite(observation=self._obs_spec.clone(), shape=n, device=self.device)
+        for key in sorted(new, key=str):
+            value = out.get(key)
+            if key == (LOOKER, "action"):
+                _check_looker_action(value, n[0])
+                spec[key[1:]] = Categorical(len(LOOKER_ACTIONS), value.shape, dtype=value.dtype, device=self.device)
+            else:
+                spec[key[1:]] = Unbounded(value.shape, dtype=value.dtype, device=self.device)
+        self._looker = module
+        self._looker_spec = spec
+        self._update_specs()
+
+    # ------------------------------------------------------------------ EnvBase API
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        mask = None if tensordict is None else tensordict.get("_reset", None)
+        if mask is None:
+            ids = np.arange(self.num_envs)
+        else:
+            ids = mask.reshape(self.num_envs).nonzero().squeeze(-1).cpu().numpy()
+        image = torch.zeros(self._obs_spec["image"].shape, dtype=torch.uint8)
+        pan = torch.zeros(self._obs_spec["pan"].shape, dtype=torch.float32)
+        if len(ids):
+            seeds = np.array([self._seed_rngs[i].integers(2**63) for i in ids], dtype=np.int64)
+            self.sim.reset(ids, seeds)
+            self.episode_seeds[ids] = seeds
+            index = torch.from_numpy(ids)
+            image[index] = torch.from_numpy(self.sim.render(ids))
+            pan[index] = torch.from_numpy(self.sim.pan(ids))
+        out = TensorDict({MOVER: {"observation": {"image": image, "pan": pan}}}, batch_size=self.batch_size)
+        out = out.to(self.device)
+        if self._looker is not None:
+            out.set(LOOKER, self._looker_spec.zero())
+        return out
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        n = self.num_envs
+        result = self.sim.move(_to_numpy(tensordict.get((MOVER, "action")), n, MOVER))
+        out = TensorDict(batch_size=self.batch_size, device=self.device)
+        if self._looker is None:
+            self.sim.look(_to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER))
+        else:
+            record = TensorDict({LOOKER: {"observation": self._observe()}}, batch_size=self.batch_size)
+            with torch.no_grad():
+                written = self._looker(record)
+            record = (record if written is None else written).get(LOOKER)
+            self.sim.look(_to_numpy(record.get("action"), n, LOOKER))
+            out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
+        out.set((MOVER, "observation"), self._observe())
+        reward = torch.from_numpy(result.reward).reshape(n, 1).to(self.device)
+        shared = self.config.looker_reward == "shared"
+        out.set((MOVER, "reward"), reward)
+        out.set((LOOKER, "reward"), reward.clone() if shared else torch.zeros_like(reward))
+        terminated = torch.from_numpy(result.terminated).reshape(n, 1).to(self.device)
+        truncated = torch.from_numpy(result.truncated).reshape(n, 1).to(self.device)
+        out.set("terminated", terminated)
+        out.set("truncated", truncated)
+        out.set("done", terminated | truncated)
+        return out
+
+    def _set_seed(self, seed: int | None) -> None:
+        """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(i,))``."""
+        self._seed_rngs = [
+            np.random.default_rng(None if seed is None else np.random.SeedSequence(seed, spawn_key=(i,)))
+            for i in range(self.num_envs)
+        ]
+
+    def close(self, *, raise_if_closed: bool = True) -> None:
+        """Release the simulator's renderer."""
+        self.sim.close()
+        super().close(raise_if_closed=raise_if_closed)
+
+    def _observe(self) -> TensorDict:
+        """The current view of every room: ``{"image", "pan"}`` on ``device``."""
+        image = torch.from_numpy(self.sim.render())
+        pan = torch.from_numpy(self.sim.pan())
+        return TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size).to(self.device)
+
+
+def _check_looker_action(action: torch.Tensor, n: int) -> None:
+    if action.is_floating_point() or action.is_complex() or action.shape not in ((n,), (n, 1)):
+        raise ValueError(
+            f"the looker module wrote ('looker', 'action') of shape {tuple(action.shape)} and dtype "
+            f"{action.dtype}: expected integers of shape ({n},) or ({n}, 1) in Discrete(3) {LOOKER_ACTIONS}"
+        )
+
+
+def _to_numpy(action: torch.Tensor | None, n: int, agent: str) -> np.ndarray:
+    if action is None:
+        raise KeyError(f"({agent!r}, 'action') missing from the input tensordict")
+    return action.detach().reshape(n).cpu().numpy()

@@ -1,0 +1,217 @@
+"""The batched TorchRL env (specs, auto-reset, seeding, the looker in the loop) and PettingZooWrapper."""
+
+import math
+import warnings
+
+import pytest
+import torch
+from conftest import goal_seeking_move
+from tensordict.nn import ProbabilisticTensorDictModule, ProbabilisticTensorDictSequential, TensorDictModule
+from torchrl.collectors import Collector
+from torchrl.envs import PettingZooWrapper
+from torchrl.envs.utils import check_env_specs
+
+import activeperc_env
+from activeperc_rl.envs import make_env
+
+# fast episodes: each move lasts 0.5 s, so a scripted mover reaches the goal in 5-16 cycles
+FAST = dict(num_obstacles=0, control_hz=2.0, forward_speed=2.0, turn_speed=40.0)
+
+
+def random_looker():
+    """A ProbabilisticActor-shaped looker: uniform logits, a sampled action and its log-probability."""
+    logits = TensorDictModule(
+        lambda image: torch.zeros(*image.shape[:-3], 3),
+        in_keys=[("looker", "observation", "image")],
+        out_keys=[("looker", "logits")],
+    )
+    sample = ProbabilisticTensorDictModule(
+        in_keys=[("looker", "logits")],
+        out_keys=[("looker", "action")],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+    )
+    return ProbabilisticTensorDictSequential(logits, sample)
+
+
+def constant_looker(action: int):
+    """A looker that always takes ``action`` (1 = hold: the Fixed_Forward camera)."""
+    return TensorDictModule(
+        lambda image: torch.full(image.shape[:1], action, dtype=torch.int64),
+        in_keys=[("looker", "observation", "image")],
+        out_keys=[("looker", "action")],
+    )
+
+
+def replay(actions):
+    """A policy that plays the rows of ``actions`` ((T, n) movers' or (T, n, 2) both agents')."""
+    rows = iter(actions)
+
+    def policy(td):
+        row = next(rows)
+        if row.ndim == 1:
+            td.set(("mover", "action"), row)
+        else:
+            td.set(("mover", "action"), row[:, 0])
+            td.set(("looker", "action"), row[:, 1])
+        return td
+
+    return policy
+
+
+def test_specs_external_mode():
+    env = make_env(num_envs=4, max_cycles=5)
+    assert env.batch_size == (4,)
+    assert set(env.action_keys) == {("mover", "action"), ("looker", "action")}
+    assert set(env.reward_keys) == {("mover", "reward"), ("looker", "reward")}
+    assert set(env.done_keys) == {"done", "terminated", "truncated"}
+    image = env.observation_spec["mover", "observation", "image"]
+    assert image.shape == (4, 60, 80, 3) and image.dtype == torch.uint8
+    assert env.full_action_spec["mover", "action"].space.n == 3
+    assert ("looker", "observation") not in env.observation_spec.keys(True)
+    check_env_specs(env, seed=0)
+    env.close()
+
+
+def test_specs_looker_mode_and_switching():
+    env = make_env(num_envs=4, looker=random_looker(), max_cycles=5)
+    assert env.action_keys == [("mover", "action")]
+    keys = set(env.observation_spec.keys(True, True))
+    assert {("looker", "action"), ("looker", "action_log_prob"), ("looker", "observation", "image")} <= keys
+    check_env_specs(env, seed=0)
+    env.set_looker(None)
+    assert set(env.action_keys) == {("mover", "action"), ("looker", "action")}
+    check_env_specs(env, seed=0)
+    outside = TensorDictModule(
+        lambda image: torch.ones(image.shape[:1], dtype=torch.int64),
+        in_keys=[("looker", "observation", "image")],
+        out_keys=["action"],
+    )
+    with pytest.raises(ValueError, match="only entries under 'looker'"):
+        env.set_looker(outside)
+    env.close()
+
+
+def test_rollout_auto_resets_finished_rooms():
+    """Rooms 0-1 drive to the goal (terminating at various cycles), rooms 2-3 drive at random."""
+    n, steps, max_cycles = 4, 30, 12
+    env = make_env(num_envs=n, looker=random_looker(), seed=3, max_cycles=max_cycles, **FAST)
+
+    def policy(td):
+        action = torch.randint(0, 3, (n,))
+        action[:2] = torch.tensor([goal_seeking_move(env.sim, i) for i in range(2)])
+        td.set(("mover", "action"), action)
+        return td
+
+    data = env.rollout(steps, policy=policy, break_when_any_done=False)
+    assert data.batch_size == (n, steps)
+    nxt = data["next"]
+    assert nxt["mover", "observation", "image"].shape == (n, steps, 60, 80, 3)
+    assert nxt["mover", "observation", "image"].dtype == torch.uint8
+    assert nxt["looker", "observation", "image"].dtype == torch.uint8
+    assert nxt["mover", "observation", "pan"].shape == (n, steps, 1)
+    assert nxt["mover", "reward"].shape == nxt["looker", "reward"].shape == (n, steps, 1)
+    assert nxt["done"].shape == (n, steps, 1) and nxt["done"].dtype == torch.bool
+    assert data["mover", "action"].shape == nxt["looker", "action"].shape == (n, steps)
+    assert nxt["looker", "action_log_prob"].shape == (n, steps)
+    assert torch.allclose(nxt["looker", "action_log_prob"], torch.tensor(-math.log(3)))
+
+    done = nxt["done"].squeeze(-1)
+    assert nxt["terminated"][:2].any() and nxt["truncated"][2:].any()
+    assert (done.any(0) & ~done.all(0)).any(), "expected partial resets"
+    assert torch.equal(nxt["mover", "reward"] > 0, nxt["terminated"])
+    assert torch.equal(nxt["looker", "reward"], nxt["mover", "reward"])  # looker_reward="shared"
+    # the cycle: s_bar keeps the pan of s, the look turns it by pan_step, s' sees the result
+    pan_bar = nxt["looker", "observation", "pan"]
+    assert torch.equal(pan_bar, data["mover", "observation", "pan"])
+    step = math.radians(30.0) * (1 - nxt["looker", "action"].unsqueeze(-1).float())
+    limit = math.radians(120.0)
+    assert torch.allclose(nxt["mover", "observation", "pan"], (pan_bar + step).clamp(-limit, limit), atol=1e-5)
+    # after a done, the room starts afresh (camera forward); otherwise the next step starts from s'
+    for t in range(steps - 1):
+        for i in range(n):
+            s_next, s_root = nxt[i, t]["mover", "observation"], data[i, t + 1]["mover", "observation"]
+            if done[i, t]:
+                assert s_root["pan"].item() == 0.0
+                assert not torch.equal(s_next["image"], s_root["image"])
+            else:
+                assert torch.equal(s_next["image"], s_root["image"])
+                assert torch.equal(s_next["pan"], s_root["pan"])
+    env.close()
+
+
+def test_same_seed_same_observations():
+    steps, n = 12, 3
+    actions = torch.randint(0, 3, (steps, n, 2), generator=torch.Generator().manual_seed(0))
+    runs = []
+    for seed in (5, 5, 6):
+        env = make_env(num_envs=n, seed=seed, max_cycles=5)
+        runs.append(env.rollout(steps, policy=replay(actions), break_when_any_done=False))
+        env.close()
+    keys = [("mover", "observation", "image"), ("next", "mover", "observation", "image"), ("next", "done")]
+    for key in keys:
+        assert torch.equal(runs[0][key], runs[1][key])
+    assert not torch.equal(runs[0]["mover", "observation", "image"], runs[2]["mover", "observation", "image"])
+
+
+def test_e1_e2_share_reset_seeds():
+    """Same base seed: room i's k-th episode has the same layout whatever the looker and num_envs."""
+    steps = 12
+    movers = torch.randint(0, 3, (steps, 3), generator=torch.Generator().manual_seed(1))
+    e1 = make_env(num_envs=2, seed=7, looker=constant_looker(1), max_cycles=4)
+    e2 = make_env(num_envs=3, seed=7, looker=constant_looker(0), max_cycles=4)
+    d1 = e1.rollout(steps, policy=replay(movers[:, :2]), break_when_any_done=False)
+    d2 = e2.rollout(steps, policy=replay(movers), break_when_any_done=False)
+    assert (e1.episode_seeds == e2.episode_seeds[:2]).all()
+    image1, image2 = d1["mover", "observation", "image"], d2["mover", "observation", "image"][:2]
+    for t in (0, 4, 8):  # the starts of episodes 1, 2, 3 (max_cycles=4)
+        assert torch.equal(image1[:, t], image2[:, t])
+    assert not torch.equal(image1[:, 1:4], image2[:, 1:4])  # the cameras pan differently
+    e1.close()
+    e2.close()
+
+
+def test_collector_records_the_looker():
+    """A mover policy under ``Collector``; the looker's cycle record comes along under ("next", "looker")."""
+    env = make_env(num_envs=4, looker=random_looker(), seed=0, max_cycles=6)
+    mover = ProbabilisticTensorDictSequential(
+        TensorDictModule(
+            lambda image: torch.zeros(*image.shape[:-3], 3),
+            in_keys=[("mover", "observation", "image")],
+            out_keys=[("mover", "logits")],
+        ),
+        ProbabilisticTensorDictModule(
+            in_keys=[("mover", "logits")],
+            out_keys=[("mover", "action")],
+            distribution_class=torch.distributions.Categorical,
+            return_log_prob=True,
+        ),
+    )
+    collector = Collector(env, mover, frames_per_batch=40, total_frames=80, auto_register_policy_transforms=False)
+    batches = list(collector)
+    collector.shutdown()
+    assert len(batches) == 2
+    assert all(data.batch_size == (4, 10) for data in batches)
+    data = torch.cat(batches, dim=1)  # the second batch continues the first one's episodes
+    assert data["next", "looker", "action"].shape == (4, 20)
+    assert data["next", "looker", "observation", "image"].dtype == torch.uint8
+    done_at = data["next", "done"].squeeze(-1).any(0).nonzero().squeeze(-1)
+    assert done_at.tolist() == [5, 11, 17]  # max_cycles=6, no room reaches the goal at random
+    env.close()
+
+
+def test_pettingzoo_wrapper_aec():
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="PettingZoo in TorchRL is tested")
+        env = PettingZooWrapper(activeperc_env.env(max_cycles=3), use_mask=True)
+    assert env.group_map == {"mover_0": ["mover_0"], "looker_0": ["looker_0"]}
+    check_env_specs(env, seed=0)
+    data = env.rollout(14, break_when_any_done=False)
+    mask = data["mover_0", "mask"].squeeze(-1)
+    assert torch.equal(mask, torch.arange(14) % 2 == 0)  # the mover acts first, then the looker
+    assert torch.equal(data["looker_0", "mask"].squeeze(-1), ~mask)
+    done = data["next", "done"].squeeze(-1)
+    assert torch.equal(done, torch.arange(14) % 6 == 5)  # 3 cycles of 2 turns, then a reset
+    assert data["mover_0", "observation", "image"].shape == (14, 1, 60, 80, 3)
+    assert (data["mover_0", "observation", "pan"][6] == 0).all()
+    env.close()
