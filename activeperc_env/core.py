@@ -12,6 +12,7 @@ the same episode through every API. One cycle of the paper's section 2 is two ca
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 import mujoco
@@ -264,6 +265,5 @@ def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: s
 
 
 def _cpu_count() -> int:
-    import os
-
+    """CPUs this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

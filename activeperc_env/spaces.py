@@ -34,9 +34,10 @@ def looker_space() -> spaces.Discrete:
 
 def check_action(agent: str, action, space: spaces.Discrete) -> int:
     """Return ``action`` as an int, or raise ``ValueError`` naming the agent and its space."""
-    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
-        if not (isinstance(action, np.ndarray) and action.shape == () and np.issubdtype(action.dtype, np.integer)):
-            raise ValueError(f"action {action!r} of {agent} is not an int in its action space {space}")
+    scalar_array = isinstance(action, np.ndarray) and action.shape == () and np.issubdtype(action.dtype, np.integer)
+    is_int = isinstance(action, (int, np.integer)) and not isinstance(action, (bool, np.bool_))
+    if not (is_int or scalar_array):
+        raise ValueError(f"action {action!r} of {agent} is not an int in its action space {space}")
     if not space.contains(int(action)):
         raise ValueError(f"action {action!r} of {agent} is outside its action space {space}")
     return int(action)
