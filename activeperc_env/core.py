@@ -106,7 +106,7 @@ class Simulator:
             qpos[self._ids.root : self._ids.root + 3] = (*layout.start_xy, names.WHEEL_RADIUS)
             half = layout.heading / 2
             qpos[self._ids.root + 3 : self._ids.root + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
-            mocap = self._mocap_pos[i].reshape(-1, 3)
+            mocap = self._mocap_pos[i]
             mocap[self._ids.goal] = (*layout.goal_xy, names.GOAL_HALF)
             for k, m in enumerate(self._ids.occluders):
                 if k < n_obs:
@@ -138,7 +138,7 @@ class Simulator:
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self.cycle[ids] += 1
         robot = self._qpos[ids, self._ids.root : self._ids.root + 2]
-        goal = self._mocap_pos[ids].reshape(len(ids), self.model.nmocap, 3)[:, self._ids.goal, :2]
+        goal = self._mocap_pos[ids][:, self._ids.goal, :2]
         success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
         frac = self.cycle[ids] / self.config.max_cycles
         reward = np.where(success, 1.0 - 0.2 * frac, 0.0).astype(np.float32)
@@ -165,7 +165,7 @@ class Simulator:
     def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:
         """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8."""
         ids = self._as_ids(ids)
-        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids].reshape(len(ids), self.model.nmocap, 3), out)
+        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids], out)
 
     def pan(self, ids=None) -> np.ndarray:
         """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""
@@ -175,7 +175,7 @@ class Simulator:
     def render_map(self, index: int = 0) -> np.ndarray:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
         return self.renderer.render_map(
-            self._qpos[index], self._mocap_pos[index].reshape(-1, 3), self.config.fov
+            self._qpos[index], self._mocap_pos[index], self.config.fov
         )
 
     def pose(self, index: int = 0) -> tuple[np.ndarray, float, float]:
@@ -187,11 +187,11 @@ class Simulator:
 
     def goal_xy(self, index: int = 0) -> np.ndarray:
         """Centre (x, y) of room ``index``'s goal box."""
-        return self._mocap_pos[index].reshape(-1, 3)[self._ids.goal, :2].copy()
+        return self._mocap_pos[index][self._ids.goal, :2].copy()
 
     def occluders_xy(self, index: int = 0) -> np.ndarray:
         """Centres (k, 2) of room ``index``'s occluder boxes in use."""
-        mocap = self._mocap_pos[index].reshape(-1, 3)
+        mocap = self._mocap_pos[index]
         return mocap[list(self._ids.occluders[: self.config.num_obstacles]), :2].copy()
 
     def physics_data(self, index: int = 0) -> mujoco.MjData:

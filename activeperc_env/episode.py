@@ -1,7 +1,7 @@
-"""``activeperc-episode``: play one episode with random (or scripted) agents and save what it looked like.
+"""``activeperc-episode``: play one episode with random agents and save what it looked like.
 
-Writes ``OUT/map.png`` (the bird's-eye map at the start), ``OUT/views.png`` (the looker's and the
-mover's first-person views of the first cycles) and ``OUT/episode.mp4`` (map beside first-person
+Writes ``OUT/map.png`` (the bird's-eye map at the start), ``OUT/views.png`` (the mover's
+first-person views of the first cycles) and ``OUT/episode.mp4`` (map beside first-person
 view, every cycle), and prints the episode's length and return.
 """
 
@@ -11,6 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 
 from activeperc_env.config import EnvConfig
@@ -38,8 +39,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--num-obstacles", type=int, default=EnvConfig.num_obstacles)
     parser.add_argument("--no-video", action="store_true", help="skip episode.mp4")
     args = parser.parse_args(argv)
-    import imageio.v3 as iio
-
     try:
         env = parallel_env(render_mode="rgb_array", fov=args.fov, num_obstacles=args.num_obstacles)
     except ValueError as err:

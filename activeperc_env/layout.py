@@ -41,8 +41,8 @@ def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
 
     Occluders stand 35-65 % of the way from start to goal (25-75 % for a fourth to sixth), the
     first within 0.45 m of the line between them, so the goal is hidden from most starts, the
-    others within 1 m of it. A draw whose
-    occluders do not fit is redrawn whole from the same stream, so a seed fixes the layout.
+    others within 1 m of it. A draw whose occluders do not fit is redrawn whole from the same
+    stream, so a seed fixes the layout.
     """
     for _ in range(MAX_TRIES):
         layout = _draw(rng, num_obstacles)
