@@ -1,0 +1,332 @@
+"""The meta-evaluation loss of the perceptual policy (paper section 3, eq. 2).
+
+The meta-evaluator
+------------------
+Two copies of the environment run the same mover ``pi_theta^m``: E1 with the perceptual policy
+``pi_phi1^c`` and critic ``V_w1`` (rollouts ``D1``), E2 with the epsilon-greedy perceptual policy
+``pi_phi2^c`` and critic ``V_w2`` (rollouts ``D2``). The meta-evaluator of a trajectory ``tau_k``
+of ``D2`` is (eq. 2)::
+
+    M(tau_k) = mean_{t in tau_k} V_w2(s_t)  -  (1/K) sum_{tau in D1} mean_{t in tau} V_w1(s_t)
+
+where ``K`` is the number of trajectories of ``D1``. The second term, the *baseline*, is the mean
+over ``D1``'s trajectories of each trajectory's mean value: every trajectory weighs the same
+whatever its length (it is not the mean over all steps of ``D1``). ``M(tau_k) > 0`` says the mover
+expects more reward with ``pi_phi2`` than with ``pi_phi1``.
+
+``pi_phi2`` is trained by REINFORCE with ``M`` in place of the return: every look ``u^c_t`` of
+``tau_k``, taken on the looker's state ``s_bar_t``, is credited with its trajectory's ``M``::
+
+    loss_looker = - sum_k sum_{t in tau_k} log pi_phi2(u^c_t | s_bar_t) * M(tau_k)
+
+divided by the number of steps with ``reduction="mean"``. ``M`` is a constant for this loss: the
+critics are evaluated without gradients. The log-probabilities are those of ``pi_phi2`` itself,
+also at the steps where the epsilon-greedy behaviour took a random look, as in the paper.
+
+Trajectories
+------------
+The rollouts are tensordicts of batch shape ``[B, T]`` (``B`` rooms, time last; any leading batch
+dimensions are flattened into ``B``), of fixed length ``T``, as a ``Collector`` or ``env.rollout``
+gives them. A trajectory is a maximal run of steps of one room that no episode end interrupts: one
+starts at ``t = 0`` and after every step whose ``("next", "done")`` is set. So a trajectory is an
+episode, or the part of it that falls inside this rollout when the episode began before ``t = 0``
+or goes on after ``t = T - 1`` (cut at the batch edges). Steps masked out by
+``("collector", "mask")`` (padding) belong to no trajectory, and a trajectory made only of masked
+steps is not counted.
+
+The keys (see :mod:`activeperc_rl.envs`): the critics read the mover's observation ``s_t`` at the
+root of each step; the looker's record of cycle ``t`` (``s_bar_t`` under
+``("looker", "observation")`` and ``u^c_t`` at ``("looker", "action")``) is read under
+``"next"``. All of them can be renamed with :meth:`MetaEvaluationLoss.set_keys`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
+from tensordict.utils import NestedKey
+from torchrl.objectives.common import LossModule
+
+__all__ = ["MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
+
+_REDUCTIONS = ("mean", "sum")
+
+
+def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
+    """Number the trajectories of a ``[B, T]`` rollout.
+
+    A trajectory starts at ``t = 0`` of each row and at every step that follows a step with
+    ``done`` set; masked-out steps belong to no trajectory (see the module docstring).
+
+    Args:
+        done: bool tensor of shape ``[B, T]`` or ``[B, T, 1]``: the episode ended at this step.
+        mask: optional bool tensor of shape ``[B, T]`` or ``[B, T, 1]``; ``False`` marks a
+            padded step, which is ignored.
+
+    Returns:
+        ``(ids, n)``: a long tensor of shape ``[B, T]`` holding, for every valid step, the id of
+        its trajectory in ``0 .. n - 1`` (``-1`` at masked steps), and ``n``, the number of
+        trajectories with at least one valid step. Every id in ``0 .. n - 1`` is used.
+    """
+    done = _as_2d(done, "done").bool()
+    if done.numel() == 0:
+        return torch.full(done.shape, -1, dtype=torch.long, device=done.device), 0
+    starts = torch.zeros_like(done)
+    starts[:, 0] = True
+    starts[:, 1:] = done[:, :-1]
+    # Flattened row-major, each row begins with a start, so rows never share a trajectory.
+    raw = starts.reshape(-1).long().cumsum(0).reshape(done.shape) - 1
+    if mask is None:
+        return raw, int(raw[-1, -1].item()) + 1
+    valid = _as_2d(mask, "mask").bool()
+    if valid.shape != done.shape:
+        raise ValueError(f"mask of shape {tuple(valid.shape)} does not match done of shape {tuple(done.shape)}.")
+    ids = torch.full_like(raw, -1)
+    used, inverse = torch.unique(raw[valid], return_inverse=True)
+    ids[valid] = inverse
+    return ids, used.numel()
+
+
+def trajectory_means(values: torch.Tensor, ids: torch.Tensor, n: int) -> torch.Tensor:
+    """Mean of ``values`` over the valid steps of each trajectory.
+
+    Args:
+        values: per-step values, of the shape of ``ids`` or with one more trailing dimension of
+            size 1 (e.g. a critic's ``[B, T, 1]`` output).
+        ids: trajectory id of every step, ``-1`` for steps to ignore (as :func:`trajectory_ids`
+            returns them).
+        n: the number of trajectories.
+
+    Returns:
+        A tensor of shape ``[n]``: entry ``k`` is the mean of ``values`` over the steps whose id is
+        ``k`` (differentiable with respect to ``values``).
+    """
+    if values.shape != ids.shape:
+        if values.shape[:-1] == ids.shape and values.shape[-1] == 1:
+            values = values.squeeze(-1)
+        else:
+            raise ValueError(f"values of shape {tuple(values.shape)} do not match ids of shape {tuple(ids.shape)}.")
+    valid = ids >= 0
+    index = ids[valid]
+    dtype = values.dtype if values.is_floating_point() else torch.get_default_dtype()
+    sums = torch.zeros(n, dtype=dtype, device=values.device).index_add(0, index, values[valid].to(dtype))
+    counts = torch.zeros(n, dtype=dtype, device=values.device).index_add(0, index, torch.ones_like(index, dtype=dtype))
+    return sums / counts
+
+
+def _as_2d(tensor: torch.Tensor, name: str) -> torch.Tensor:
+    if tensor.ndim == 3 and tensor.shape[-1] == 1:
+        tensor = tensor.squeeze(-1)
+    if tensor.ndim != 2:
+        raise ValueError(f"{name} must have shape [B, T] or [B, T, 1], got {tuple(tensor.shape)}.")
+    return tensor
+
+
+def _join(prefix: NestedKey, key: NestedKey) -> tuple[str, ...]:
+    prefix = ((prefix,) if prefix else ()) if isinstance(prefix, str) else tuple(prefix)
+    key = (key,) if isinstance(key, str) else tuple(key)
+    return prefix + key
+
+
+class MetaEvaluationLoss(LossModule):
+    """REINFORCE loss of the perceptual policy ``pi_phi2`` with the meta-evaluator as return.
+
+    See the module docstring for the formula and the trajectory definition.
+
+    Args:
+        looker_actor: ``pi_phi2``, a :class:`~tensordict.nn.ProbabilisticTensorDictSequential`
+            (e.g. a :class:`~torchrl.modules.ProbabilisticActor`) whose ``get_dist`` gives a
+            ``Categorical`` over the looks, reading keys under ``"looker"`` (e.g.
+            ``("looker", "observation", "image")``). It gets the gradients of this loss.
+        critic: ``V_w2``, a :class:`~tensordict.nn.TensorDictModule` reading the mover's
+            observation at the root and writing ``"state_value"`` of shape ``[..., 1]``;
+            evaluated on ``D2`` without gradients.
+        reference_critic: ``V_w1``, the same for ``D1`` (may be the same module as ``critic``).
+        entropy_coeff: weight of the entropy bonus ``loss_entropy``; ``0`` leaves it out.
+        reduction: ``"mean"`` divides the sums over steps by the number of valid steps of ``D2``,
+            ``"sum"`` does not.
+
+    Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
+    (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``meta_value``
+    (mean of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (``K`` of
+    ``D2``) and ``num_reference_trajectories`` (``K`` of ``D1``).
+
+    The three modules are held as they are (not functionalised): ``loss.looker_actor`` is
+    ``looker_actor`` itself, and an optimizer over ``looker_actor.parameters()`` trains it.
+    """
+
+    @dataclass
+    class _AcceptedKeys:
+        """Tensordict keys of the loss, settable with ``set_keys(name=key)``.
+
+        Attributes:
+            value (NestedKey): where both critics write the state value. Defaults to ``"state_value"``.
+            done (NestedKey): end of an episode at this step, in both ``D1`` and ``D2``.
+                Defaults to ``("next", "done")``.
+            mask (NestedKey): validity of each step (``False`` = padding); absent = all valid.
+                Defaults to ``("collector", "mask")``.
+            looker_record (NestedKey): the sub-tensordict of ``D2`` holding the looker's record of
+                each cycle (the looker actor's in_keys and its action); ``()`` for the root.
+                Defaults to ``"next"``.
+            looker_action (NestedKey): the look ``u^c_t``, relative to ``looker_record``.
+                Defaults to ``("looker", "action")``.
+        """
+
+        value: NestedKey = "state_value"
+        done: NestedKey = ("next", "done")
+        mask: NestedKey = ("collector", "mask")
+        looker_record: NestedKey = "next"
+        looker_action: NestedKey = ("looker", "action")
+
+    default_keys = _AcceptedKeys
+    tensor_keys: _AcceptedKeys
+    _schedulable_buffers = frozenset({"entropy_coeff"})
+
+    looker_actor: ProbabilisticTensorDictSequential
+    critic: TensorDictModule
+    reference_critic: TensorDictModule
+
+    def __init__(
+        self,
+        looker_actor: ProbabilisticTensorDictSequential,
+        critic: TensorDictModule,
+        reference_critic: TensorDictModule,
+        *,
+        entropy_coeff: float = 0.01,
+        reduction: str = "mean",
+    ):
+        if reduction not in _REDUCTIONS:
+            raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
+        if not hasattr(looker_actor, "get_dist"):
+            raise TypeError(
+                "looker_actor must be a ProbabilisticTensorDictSequential (e.g. a ProbabilisticActor) "
+                f"with a get_dist method, got {type(looker_actor).__name__}."
+            )
+        super().__init__()
+        self.looker_actor = looker_actor
+        self.critic = critic
+        self.reference_critic = reference_critic
+        self.reduction = reduction
+        self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
+        self._entropy_bonus = float(entropy_coeff) != 0.0
+
+    @property
+    def functional(self) -> bool:
+        """``False``: the modules are used as given, with their own parameters."""
+        return False
+
+    @property
+    def in_keys(self) -> list[NestedKey]:
+        """Keys read from ``D2`` (``D1`` is read at the same done, mask and critic keys)."""
+        keys = self.tensor_keys
+        record = keys.looker_record
+        in_keys = [keys.done, keys.mask, _join(record, keys.looker_action)]
+        in_keys += [_join(record, key) for key in self.looker_actor.in_keys]
+        in_keys += list(self.critic.in_keys) + list(self.reference_critic.in_keys)
+        return list(dict.fromkeys(in_keys))
+
+    @property
+    def out_keys(self) -> list[str]:
+        """Keys of the output tensordict."""
+        out = ["loss_looker"]
+        if self._entropy_bonus:
+            out.append("loss_entropy")
+        return [*out, "entropy", "meta_value", "baseline", "num_trajectories", "num_reference_trajectories"]
+
+    def _forward_value_estimator_keys(self, **kwargs) -> None:
+        # No value estimator: the keys are read directly from tensor_keys.
+        pass
+
+    def _steps(self, tensordict: TensorDictBase, name: str) -> tuple[TensorDictBase, torch.Tensor, torch.Tensor, int]:
+        """Flatten ``tensordict`` to ``[B, T]`` and number its trajectories.
+
+        Returns the flattened tensordict, the validity mask ``[B, T]``, the trajectory ids and
+        their count.
+        """
+        if tensordict.batch_dims < 1:
+            raise ValueError(f"{name} must have a time dimension (batch shape [B, T]), got {tensordict.batch_size}.")
+        if tensordict.batch_dims == 1:
+            tensordict = tensordict.unsqueeze(0)
+        elif tensordict.batch_dims > 2:
+            tensordict = tensordict.reshape(-1, tensordict.batch_size[-1])
+        shape = tensordict.batch_size
+        keys = self.tensor_keys
+        done = tensordict.get(keys.done, None)
+        if done is None:
+            raise ValueError(f"{name} has no done entry {keys.done!r}.")
+        done = done.reshape(shape)
+        mask = tensordict.get(keys.mask, None)
+        if mask is None:
+            mask = torch.ones(shape, dtype=torch.bool, device=done.device)
+        else:
+            mask = mask.reshape(shape).bool()
+        ids, n = trajectory_ids(done, mask)
+        if n == 0:
+            raise ValueError(f"{name} has no valid step: every step is masked out by {keys.mask!r}.")
+        return tensordict, mask, ids, n
+
+    def _trajectory_values(
+        self, critic: TensorDictModule, tensordict: TensorDictBase, mask: torch.Tensor, ids: torch.Tensor, n: int
+    ) -> torch.Tensor:
+        """Mean critic value of each trajectory, computed on the valid steps only, without gradient."""
+        steps = tensordict.select(*critic.in_keys, strict=False)[mask]
+        with torch.no_grad():
+            value = critic(steps).get(self.tensor_keys.value)
+        return trajectory_means(value.reshape(-1).detach(), ids[mask], n)
+
+    def forward(self, tensordict: TensorDictBase, reference: TensorDictBase) -> TensorDictBase:
+        """Compute the loss of ``pi_phi2`` on ``D2`` (``tensordict``) against the baseline of ``D1`` (``reference``).
+
+        Args:
+            tensordict: ``D2``, the rollout of E2, batch shape ``[B, T]``.
+            reference: ``D1``, the rollout of E1, batch shape ``[B', T']``.
+
+        Returns:
+            A tensordict with empty batch size; see the class docstring for its entries.
+        """
+        keys = self.tensor_keys
+        record_key = keys.looker_record
+        action_key = _join(record_key, keys.looker_action)
+        if tensordict.get(action_key, None) is None:
+            raise ValueError(
+                f"D2 (the first argument) has no looker action at {action_key!r}: it must be a rollout "
+                "with a looker module in the env (looker mode), or set_keys(looker_record=..., looker_action=...)."
+            )
+
+        # Baseline: (1/K) sum over D1's trajectories of mean_t V_w1(s_t).
+        reference, ref_mask, ref_ids, num_ref = self._steps(reference, "reference (D1)")
+        baseline = self._trajectory_values(self.reference_critic, reference, ref_mask, ref_ids, num_ref).mean()
+
+        # Meta-evaluator of each trajectory of D2.
+        tensordict, mask, ids, num = self._steps(tensordict, "tensordict (D2)")
+        meta = (self._trajectory_values(self.critic, tensordict, mask, ids, num) - baseline).detach()
+
+        # REINFORCE on the valid steps of D2, each weighted by its trajectory's M.
+        record = tensordict if record_key in ((), "") else tensordict.get(record_key)
+        steps = record.select(*self.looker_actor.in_keys, keys.looker_action, strict=False)[mask]
+        action = steps.get(keys.looker_action)
+        dist = self.looker_actor.get_dist(steps.exclude(keys.looker_action))
+        if action.ndim == len(dist.batch_shape) + 1 and action.shape[-1] == 1:
+            action = action.squeeze(-1)
+        log_prob = dist.log_prob(action).reshape(-1)
+        weights = meta[ids[mask]]
+        loss_looker = -(log_prob * weights).sum()
+        entropy = dist.entropy().reshape(-1)
+        loss_entropy = -self.entropy_coeff * entropy.sum()
+        if self.reduction == "mean":
+            loss_looker = loss_looker / log_prob.numel()
+            loss_entropy = loss_entropy / log_prob.numel()
+
+        out = TensorDict({"loss_looker": loss_looker}, batch_size=[])
+        if self._entropy_bonus:
+            out.set("loss_entropy", loss_entropy)
+        dtype = meta.dtype
+        out.set("entropy", entropy.detach().mean())
+        out.set("meta_value", meta.mean())
+        out.set("baseline", baseline.detach())
+        out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
+        out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
+        return out

@@ -1,0 +1,391 @@
+"""Meta-evaluation loss on synthetic tensordicts against hand-computed numbers (no env, no rendering)."""
+
+import math
+
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.modules import ProbabilisticActor
+
+from activeperc_rl.losses import MetaEvaluationLoss, trajectory_ids, trajectory_means
+
+PAN = ("mover", "observation", "pan")
+LOOKER_PAN = ("looker", "observation", "pan")
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+class FixedLogits(nn.Module):
+    """The same logits at every step, whatever the observation (one learnable vector)."""
+
+    def __init__(self, logits):
+        super().__init__()
+        self.logits = nn.Parameter(torch.as_tensor(logits, dtype=torch.float32))
+
+    def forward(self, pan):
+        return self.logits.expand(*pan.shape[:-1], 3)
+
+
+def make_actor(module=None):
+    module = FixedLogits([0.0, 0.0, 0.0]) if module is None else module
+    return ProbabilisticActor(
+        TensorDictModule(module, in_keys=[LOOKER_PAN], out_keys=[("looker", "logits")]),
+        in_keys={"logits": ("looker", "logits")},
+        out_keys=[("looker", "action")],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+    )
+
+
+def pan_critic():
+    """V(s) = the pan entry of the mover's observation: values are hand-chosen numbers."""
+    return TensorDictModule(lambda pan: pan.clone(), in_keys=[PAN], out_keys=["state_value"])
+
+
+def linear_critic(weight, bias):
+    net = nn.Linear(1, 1)
+    with torch.no_grad():
+        net.weight.fill_(weight)
+        net.bias.fill_(bias)
+    return TensorDictModule(net, in_keys=[PAN], out_keys=["state_value"])
+
+
+def make_td(values, done, actions=None, mask=None, done_key=("next", "done")):
+    values = torch.as_tensor(values, dtype=torch.float32)
+    shape = values.shape
+    actions = torch.zeros(shape, dtype=torch.long) if actions is None else torch.as_tensor(actions)
+    td = TensorDict(
+        {
+            PAN: values.unsqueeze(-1),
+            done_key: torch.as_tensor(done, dtype=torch.bool).unsqueeze(-1),
+            ("next", *LOOKER_PAN): torch.zeros(*shape, 1),
+            ("next", "looker", "action"): actions,
+        },
+        batch_size=shape,
+    )
+    if mask is not None:
+        td.set(("collector", "mask"), torch.as_tensor(mask, dtype=torch.bool))
+    return td
+
+
+def canonical(ids):
+    """Relabel trajectory ids in order of first appearance (row-major), keeping -1."""
+    mapping, out = {}, []
+    for i in ids.reshape(-1).tolist():
+        if i < 0:
+            out.append(-1)
+        else:
+            out.append(mapping.setdefault(i, len(mapping)))
+    return torch.tensor(out).reshape(ids.shape)
+
+
+F, T_ = False, True
+
+# 4 rooms x 5 steps
+DONE = [
+    [F, T_, F, F, F],  # ends at t=1: trajectories t0-1 and t2-4
+    [F, F, F, F, T_],  # done at the last step: one trajectory t0-4
+    [T_, F, T_, F, F],  # trajectories t0, t1-2, t3-4 (the last one is all padding below)
+    [F, F, F, F, F],  # fully masked below
+]
+MASK = [
+    [T_, T_, T_, T_, T_],
+    [T_, T_, T_, T_, T_],
+    [T_, T_, T_, F, F],  # padded at the end of the row
+    [F, F, F, F, F],  # fully padded row
+]
+VALUES = [
+    [1.0, 3.0, 2.0, 4.0, 6.0],  # means: (1+3)/2 = 2, (2+4+6)/3 = 4
+    [5.0, 5.0, 5.0, 5.0, 0.0],  # (5+5+5+5+0)/5 = 4
+    [7.0, 1.0, 3.0, 100.0, 100.0],  # 7, (1+3)/2 = 2, padding ignored
+    [50.0, 50.0, 50.0, 50.0, 50.0],  # padding ignored
+]
+
+
+# ----------------------------------------------------------------------------- trajectory_ids / means
+
+
+def test_trajectory_ids_without_mask():
+    ids, n = trajectory_ids(torch.tensor(DONE).unsqueeze(-1))
+    assert ids.shape == (4, 5) and ids.dtype == torch.long
+    assert n == 7
+    assert sorted(set(ids.reshape(-1).tolist())) == list(range(7))
+    expected = [
+        [0, 0, 1, 1, 1],
+        [2, 2, 2, 2, 2],
+        [3, 4, 4, 5, 5],
+        [6, 6, 6, 6, 6],
+    ]
+    assert canonical(ids).tolist() == expected
+
+
+def test_trajectory_ids_with_mask():
+    ids, n = trajectory_ids(torch.tensor(DONE), torch.tensor(MASK))
+    # row 2's last trajectory (t3-4) is only padding and row 3 is only padding: 5 trajectories.
+    assert n == 5
+    assert sorted(set(ids[ids >= 0].tolist())) == list(range(5))
+    expected = [
+        [0, 0, 1, 1, 1],
+        [2, 2, 2, 2, 2],
+        [3, 4, 4, -1, -1],
+        [-1, -1, -1, -1, -1],
+    ]
+    assert canonical(ids).tolist() == expected
+    # a [B, T, 1] mask is accepted too
+    ids3, n3 = trajectory_ids(torch.tensor(DONE).unsqueeze(-1), torch.tensor(MASK).unsqueeze(-1))
+    assert n3 == 5 and torch.equal(ids3, ids)
+
+
+def test_trajectory_ids_single_row_and_errors():
+    ids, n = trajectory_ids(torch.tensor([[F, F, T_]]))
+    assert n == 1 and ids.tolist() == [[0, 0, 0]]
+    ids, n = trajectory_ids(torch.tensor([[T_, T_, T_]]))
+    assert n == 3 and canonical(ids).tolist() == [[0, 1, 2]]
+    with pytest.raises(ValueError, match="shape"):
+        trajectory_ids(torch.zeros(2, 3, 2, dtype=torch.bool))
+    with pytest.raises(ValueError, match="mask"):
+        trajectory_ids(torch.zeros(2, 3, dtype=torch.bool), torch.ones(2, 4, dtype=torch.bool))
+
+
+def test_trajectory_means():
+    ids, n = trajectory_ids(torch.tensor(DONE), torch.tensor(MASK))
+    values = torch.tensor(VALUES)
+    means = trajectory_means(values, ids, n)
+    assert means.shape == (5,)
+    # trajectory means, by hand (see VALUES): 2, 4, 4, 7, 2
+    assert sorted(means.tolist()) == pytest.approx([2.0, 2.0, 4.0, 4.0, 7.0])
+    per_step = means[ids.clamp_min(0)]
+    expected = torch.tensor(
+        [
+            [2.0, 2.0, 4.0, 4.0, 4.0],
+            [4.0, 4.0, 4.0, 4.0, 4.0],
+            [7.0, 2.0, 2.0, 0.0, 0.0],
+        ]
+    )
+    valid = ids >= 0
+    assert torch.allclose(per_step[:3][valid[:3]], expected[valid[:3]])
+    # a critic's [B, T, 1] output gives the same
+    assert torch.allclose(trajectory_means(values.unsqueeze(-1), ids, n), means)
+    # padded entries may hold anything, even NaN
+    values[2, 3:] = float("nan")
+    values[3] = float("nan")
+    assert torch.allclose(trajectory_means(values, ids, n), means)
+
+
+def test_trajectory_means_is_differentiable():
+    values = torch.tensor([[1.0, 2.0, 3.0]], requires_grad=True)
+    ids, n = trajectory_ids(torch.tensor([[T_, F, F]]))
+    trajectory_means(values, ids, n).sum().backward()
+    # d/dv of [v0, (v1 + v2)/2]
+    assert values.grad.tolist() == [[1.0, 0.5, 0.5]]
+
+
+# ----------------------------------------------------------------------------- the loss
+
+
+def reference_td():
+    # D1: room 0 has K = 2 trajectories of different lengths: t0 (V = 10) and t1-3 (V = 1, 2, 3, mean 2).
+    # baseline = (10 + 2) / 2 = 6, whereas the mean over all steps would be 16 / 4 = 4.
+    # room 1 is only padding (huge values that must not count).
+    return make_td(
+        values=[[10.0, 1.0, 2.0, 3.0], [1000.0, 1000.0, 1000.0, 1000.0]],
+        done=[[T_, F, F, F], [F, F, F, F]],
+        mask=[[T_, T_, T_, T_], [F, F, F, F]],
+    )
+
+
+def rollout_td(actions=((1, 0, 2), (1, 1, 0))):
+    # D2, 2 rooms x 3 steps (another shape than D1):
+    #   room 0: done at t=1 -> tau_0 = t0-1 (V 7, 9: mean 8, M = 8 - 6 = 2), tau_1 = t2 (V 4, M = -2)
+    #   room 1: t2 padded -> tau_2 = t0-1 (V 6, 10: mean 8, M = 2)
+    return make_td(
+        values=[[7.0, 9.0, 4.0], [6.0, 10.0, 999.0]],
+        done=[[F, T_, F], [F, F, F]],
+        actions=list(actions),
+        mask=[[T_, T_, T_], [T_, T_, F]],
+    )
+
+
+def test_baseline_is_mean_of_trajectory_means():
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())
+    out = loss(rollout_td(), reference_td())
+    assert out["baseline"].item() == pytest.approx(6.0)
+    assert out["num_reference_trajectories"].item() == 2.0
+    assert out["num_trajectories"].item() == 3.0
+    assert out["num_trajectories"].dtype.is_floating_point
+    # meta values 2, -2, 2
+    assert out["meta_value"].item() == pytest.approx(2.0 / 3.0)
+
+
+def test_loss_uniform_policy():
+    # uniform logits: log pi = -ln 3 at every step; valid steps' M: 2, 2, -2, 2, 2 (sum 6)
+    # sum: -(-ln 3) * 6 = 6 ln 3; mean over 5 valid steps: 1.2 ln 3
+    ln3 = math.log(3.0)
+    td, ref = rollout_td(), reference_td()
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())(td, ref)
+    assert out["loss_looker"].item() == pytest.approx(1.2 * ln3)
+    assert out["entropy"].item() == pytest.approx(ln3)
+    assert out["loss_entropy"].item() == pytest.approx(-0.01 * ln3)
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), reduction="sum")(td, ref)
+    assert out["loss_looker"].item() == pytest.approx(6.0 * ln3)
+    assert out["loss_entropy"].item() == pytest.approx(-0.01 * 5 * ln3)
+
+
+def test_loss_known_log_probs():
+    # probs (1/4, 1/2, 1/4); actions row 0: 1, 0, 2 with M 2, 2, -2; row 1: 1, 1 with M 2, 2
+    # sum_t log pi * M = 2 ln(1/2) + 2 ln(1/4) - 2 ln(1/4) + 2 ln(1/2) + 2 ln(1/2) = -6 ln 2
+    # loss sum = 6 ln 2, mean = 6 ln 2 / 5
+    # entropy = -(1/4 ln 1/4 + 1/2 ln 1/2 + 1/4 ln 1/4) = 1.5 ln 2
+    ln2 = math.log(2.0)
+    actor = make_actor(FixedLogits(torch.tensor([0.25, 0.5, 0.25]).log()))
+    loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic(), entropy_coeff=0.5)
+    out = loss(rollout_td(), reference_td())
+    assert out["loss_looker"].item() == pytest.approx(1.2 * ln2)
+    assert out["entropy"].item() == pytest.approx(1.5 * ln2)
+    assert out["loss_entropy"].item() == pytest.approx(-0.5 * 1.5 * ln2)
+    loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic(), reduction="sum")
+    assert loss(rollout_td(), reference_td())["loss_looker"].item() == pytest.approx(6.0 * ln2)
+
+
+def test_masked_steps_change_nothing():
+    actor = make_actor(FixedLogits(torch.tensor([0.25, 0.5, 0.25]).log()))
+    loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic())
+    out = loss(rollout_td(), reference_td())
+
+    td = rollout_td(actions=((1, 0, 2), (1, 1, 2)))  # other action at the padded step
+    # write in place into the entries (indexing a TensorDict first would only change a copy)
+    td.get(PAN)[1, 2] = -123.0
+    td.get(("next", *LOOKER_PAN))[1, 2] = float("nan")
+    td.get(("next", "done"))[1, 2] = True
+    ref = reference_td()
+    ref.get(PAN)[1] = float("nan")
+    ref.get(("next", "done"))[1] = True
+    assert td[PAN][1, 2].item() == -123.0 and ref[PAN][1].isnan().all()
+    other = loss(td, ref)
+    for key in out.keys():
+        assert torch.equal(out[key], other[key]), key
+
+
+def test_no_mask_means_all_valid_and_trailing_action_dim():
+    # D2 without mask, one room, action stored as [B, T, 1]:
+    # V = 8, 4 with done at t0 -> M = 2, -2 (baseline 6); uniform: loss = -(-ln3)(2 - 2) / 2 = 0
+    td = make_td(values=[[8.0, 4.0]], done=[[T_, F]], actions=[[[0], [2]]])
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())(td, reference_td())
+    assert out["num_trajectories"].item() == 2.0
+    assert out["loss_looker"].item() == pytest.approx(0.0, abs=1e-6)
+    assert out["meta_value"].item() == pytest.approx(0.0)
+
+
+def test_one_dimensional_rollout():
+    # a [T] rollout (single room) is one row: V 8, 10 -> M = 9 - 6 = 3; uniform: loss = ln 3 * 3
+    td = make_td(values=[8.0, 10.0], done=[F, F], actions=[0, 1])
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())(td, reference_td())
+    assert out["num_trajectories"].item() == 1.0
+    assert out["loss_looker"].item() == pytest.approx(3.0 * math.log(3.0))
+
+
+def test_entropy_coeff_zero_omits_loss_entropy():
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), entropy_coeff=0.0)
+    out = loss(rollout_td(), reference_td())
+    assert "loss_entropy" not in out.keys()
+    assert "loss_entropy" not in loss.out_keys
+    assert [k for k in out.keys() if k.startswith("loss_")] == ["loss_looker"]
+
+
+def test_gradients_reach_only_the_looker_and_have_the_right_sign():
+    torch.manual_seed(0)
+    actor = make_actor(nn.Linear(1, 3))
+    critic = linear_critic(1.0, 0.0)  # V_w2 = pan
+    reference_critic = linear_critic(1.0, -10.0)  # V_w1 = pan - 10: baseline = 6 - 10 = -4
+    loss = MetaEvaluationLoss(actor, critic, reference_critic, entropy_coeff=0.0)
+    td = rollout_td()
+    td[PAN] = td[PAN] + 1.0  # lower D2 values a bit; all M_k stay positive (M = 13, 9, 13)
+    td[("next", *LOOKER_PAN)] = torch.randn(2, 3, 1)
+    out = loss(td, reference_td())
+    assert out["baseline"].item() == pytest.approx(-4.0)
+    assert out["meta_value"].item() == pytest.approx((13.0 + 9.0 + 13.0) / 3.0)
+    out["loss_looker"].backward()
+
+    actor_params = list(actor.parameters())
+    assert actor_params and all(p.grad is not None and p.grad.abs().sum() > 0 for p in actor_params)
+    for module in (critic, reference_critic):
+        assert all(p.grad is None for p in module.parameters())
+
+    def taken_log_prob():
+        valid = td["collector", "mask"]
+        with torch.no_grad():
+            dist = actor.get_dist(td["next"][valid])
+        return dist.log_prob(td["next", "looker", "action"][valid]).sum()
+
+    before = taken_log_prob()
+    with torch.no_grad():
+        for p in actor_params:
+            p -= 0.01 * p.grad
+    assert taken_log_prob() > before
+
+
+def test_set_keys_done():
+    td = rollout_td()
+    done = td.pop(("next", "done"))
+    td.set(("next", "episode_end"), done)
+    ref = reference_td()
+    ref.set(("next", "episode_end"), ref.pop(("next", "done")))
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())
+    with pytest.raises(ValueError, match="done"):
+        loss(td, ref)
+    loss.set_keys(done=("next", "episode_end"))
+    assert loss.tensor_keys.done == ("next", "episode_end")
+    assert ("next", "episode_end") in loss.in_keys
+    out = loss(td, ref)
+    assert out["num_trajectories"].item() == 3.0
+    assert out["loss_looker"].item() == pytest.approx(1.2 * math.log(3.0))
+    with pytest.raises(ValueError, match="not an accepted"):
+        loss.set_keys(nonsense="x")
+
+
+def test_set_keys_looker_record():
+    # the looker's record stored at the root instead of under "next"
+    td = rollout_td()
+    td.set("looker", td.pop(("next", "looker")))
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())
+    loss.set_keys(looker_record=())
+    out = loss(td, reference_td())
+    assert out["loss_looker"].item() == pytest.approx(1.2 * math.log(3.0))
+
+
+def test_errors():
+    actor, critic = make_actor(), pan_critic()
+    with pytest.raises(ValueError, match="reduction"):
+        MetaEvaluationLoss(actor, critic, critic, reduction="none")
+    loss = MetaEvaluationLoss(actor, critic, critic)
+    td = rollout_td()
+    del td["next", "looker", "action"]
+    with pytest.raises(ValueError, match="looker action"):
+        loss(td, reference_td())
+
+    ref = reference_td()
+    ref["collector", "mask"] = torch.zeros(2, 4, dtype=torch.bool)
+    with pytest.raises(ValueError, match=r"reference \(D1\) has no valid step"):
+        loss(rollout_td(), ref)
+    td = rollout_td()
+    td["collector", "mask"] = torch.zeros(2, 3, dtype=torch.bool)
+    with pytest.raises(ValueError, match=r"\(D2\) has no valid step"):
+        loss(td, reference_td())
+    with pytest.raises(TypeError, match="get_dist"):
+        MetaEvaluationLoss(critic, critic, critic)
+
+
+def test_nan_at_padded_steps_does_not_reach_the_gradients():
+    torch.manual_seed(0)
+    actor = make_actor(nn.Linear(1, 3))
+    loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic())
+    td = rollout_td()
+    td.get(("next", *LOOKER_PAN))[1, 2] = float("nan")  # padded step: NaN logits if it were evaluated
+    td.get(PAN)[1, 2] = float("nan")
+    out = loss(td, reference_td())
+    (out["loss_looker"] + out["loss_entropy"]).backward()
+    assert torch.isfinite(out["loss_looker"])
+    assert all(torch.isfinite(p.grad).all() for p in actor.parameters())
