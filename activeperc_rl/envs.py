@@ -49,7 +49,9 @@ Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_rese
 ``step_and_maybe_reset``, ``rollout`` and ``Collector``). Seeding: :meth:`set_seed` gives room ``i``
 its own stream of episode seeds, derived from the base seed and ``i`` only, so two envs seeded alike
 (E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
-in the same layout; ``episode_seeds`` holds each room's current episode seed.
+in the same layout; ``episode_seeds`` holds each room's current episode seed. Training rooms
+(``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
+evaluation layout never repeats a training layout whatever the base seeds.
 """
 
 from __future__ import annotations
@@ -67,7 +69,12 @@ from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
 MOVER, LOOKER = "mover", "looker"
 
 
-def make_env(num_envs: int = 1, device="cpu", looker=None, seed: int | None = None, **env_config):
+SPLITS = ("train", "eval")
+
+
+def make_env(
+    num_envs: int = 1, device="cpu", looker=None, seed: int | None = None, split: str = "train", **env_config
+):
     """Build the batched TorchRL env over one ``Simulator(num_envs)``.
 
     Args:
@@ -76,9 +83,12 @@ def make_env(num_envs: int = 1, device="cpu", looker=None, seed: int | None = No
         looker: the looker module (looker mode), or ``None`` for external mode (see the module doc).
         seed: base seed of the rooms' layout streams (same as calling ``env.set_seed(seed)``);
             give E1 and E2 the same seed to give them the same reset sequence.
+        split: ``"train"`` (even episode seeds) or ``"eval"`` (odd ones): the two never share a layout.
         **env_config: any :class:`~activeperc_env.EnvConfig` field.
     """
-    env = ActivePerceptionEnv(EnvConfig.from_kwargs(**env_config), num_envs=num_envs, device=device, looker=looker)
+    env = ActivePerceptionEnv(
+        EnvConfig.from_kwargs(**env_config), num_envs=num_envs, device=device, looker=looker, split=split
+    )
     if seed is not None:
         env.set_seed(seed)
     return env
@@ -93,10 +103,16 @@ class ActivePerceptionEnv(EnvBase):
         device: device of the output tensors.
         looker: the looker module, or ``None`` (external mode).
         nthread: physics threads of the simulator (0: every core).
+        split: ``"train"`` or ``"eval"``: the parity of the episode seeds (see the module doc).
     """
 
-    def __init__(self, config: EnvConfig, num_envs: int = 1, device="cpu", looker=None, nthread: int = 0):
+    def __init__(
+        self, config: EnvConfig, num_envs: int = 1, device="cpu", looker=None, nthread: int = 0, split: str = "train"
+    ):
+        if split not in SPLITS:
+            raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
         super().__init__(device=device, batch_size=[num_envs])
+        self.split = split
         self.config = config
         self.num_envs = num_envs
         self.sim = Simulator(config, num_envs=num_envs, nthread=nthread)
@@ -197,7 +213,8 @@ class ActivePerceptionEnv(EnvBase):
         image = torch.zeros(self._obs_spec["image"].shape, dtype=torch.uint8)
         pan = torch.zeros(self._obs_spec["pan"].shape, dtype=torch.float32)
         if len(ids):
-            seeds = np.array([self._seed_rngs[i].integers(2**63) for i in ids], dtype=np.int64)
+            parity = SPLITS.index(self.split)
+            seeds = np.array([2 * self._seed_rngs[i].integers(2**62) + parity for i in ids], dtype=np.int64)
             self.sim.reset(ids, seeds)
             self.episode_seeds[ids] = seeds
             index = torch.from_numpy(ids)

@@ -1,0 +1,98 @@
+"""What a run leaves on disk: the checkpoint and the metrics log, both safe against a kill.
+
+``checkpoint.pt`` is written to a temporary file in the same directory, flushed to disk and
+renamed over the old one (an atomic replace), so a kill at any moment leaves the previous
+checkpoint whole. ``metrics.csv`` gets one flushed row per iteration; on resume the rows
+written after the checkpoint are dropped, so ``frames`` stays monotone.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+
+import torch
+
+from activeperc_rl.config import TrainConfig
+
+CHECKPOINT = "checkpoint.pt"
+METRICS = "metrics.csv"
+CONFIG = "config.yaml"
+METRIC_COLUMNS = ("frames", "iteration", "time_s", "fps", "success_rate", "mean_return", "episodes")
+
+
+def save_checkpoint(path: str | Path, state: dict) -> None:
+    """Write ``state`` with ``torch.save`` atomically (temporary file, fsync, rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as f:
+        torch.save(state, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict:
+    """Read a checkpoint; with ``config``, check that the checkpoint was trained with it.
+
+    Raises ``ValueError`` naming the file when it is missing or unreadable, or naming the options
+    that differ from ``config`` (the training budget ``frames`` and ``device`` may differ).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no checkpoint at {str(path)!r}")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as error:  # noqa: BLE001 - any unpickling failure means an unusable file
+        raise ValueError(f"checkpoint {str(path)!r} cannot be read: {error}") from error
+    if not isinstance(state, dict) or "config" not in state or "method" not in state:
+        raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
+    if config is not None:
+        saved = TrainConfig.from_dict(state["config"])
+        differ = config_differences(saved, config)
+        if differ:
+            raise ValueError(f"checkpoint {str(path)!r} does not match the config: {'; '.join(differ)}")
+    return state
+
+
+def config_differences(saved: TrainConfig, config: TrainConfig, free=("frames", "device")) -> list[str]:
+    """Human-readable ``name: saved -> new`` for every option that differs, except those in ``free``."""
+    old, new = saved.to_dict(), config.to_dict()
+    differ = [f"{k}: {old[k]!r} -> {new[k]!r}" for k in old if k not in free and k != "env" and old[k] != new[k]]
+    differ += [f"env.{k}: {v!r} -> {new['env'][k]!r}" for k, v in old["env"].items() if new["env"][k] != v]
+    return differ
+
+
+class MetricsLog:
+    """``metrics.csv``: one row per iteration, flushed as it is written.
+
+    Args:
+        path: the CSV file.
+        keep_until: on resume, the checkpoint's frame count: rows beyond it are dropped (the file is
+            rewritten atomically); ``None`` starts a new file.
+    """
+
+    def __init__(self, path: str | Path, keep_until: int | None = None):
+        self.path = Path(path)
+        rows = []
+        if keep_until is not None and self.path.is_file():
+            with open(self.path, newline="") as f:
+                rows = [r for r in csv.DictReader(f) if int(r["frames"]) <= keep_until]
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, METRIC_COLUMNS)
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, self.path)
+        self._file = open(self.path, "a", newline="")  # noqa: SIM115 - kept open for the run
+        self._writer = csv.DictWriter(self._file, METRIC_COLUMNS)
+
+    def append(self, row: dict) -> None:
+        """Write one row (keys: :data:`METRIC_COLUMNS`) and flush it."""
+        self._writer.writerow(row)
+        self._file.flush()
+
+    def close(self) -> None:
+        """Close the file."""
+        self._file.close()

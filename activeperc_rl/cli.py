@@ -1,0 +1,108 @@
+"""``activeperc-train``: command-line flags generated from the typed configs.
+
+Every :class:`~activeperc_rl.config.TrainConfig` field and every
+:class:`~activeperc_env.EnvConfig` field is a flag (``num_envs`` -> ``--num-envs``, booleans get
+``--x/--no-x``), documented by the field's docstring. Precedence: defaults, then the YAML preset
+given with ``--config``, then the flags. With ``--resume`` the run's own ``config.yaml`` is the
+base and only ``--frames`` and ``--device`` may change.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import inspect
+import sys
+import time
+from pathlib import Path
+
+from activeperc_env import EnvConfig
+from activeperc_rl.config import DEVICES, METHODS, TrainConfig, load_yaml
+
+CHOICES = {"method": METHODS, "device": DEVICES}
+
+
+def field_docs(cls) -> dict[str, str]:
+    """The docstring written under each field of the dataclass ``cls`` (read from its source)."""
+    tree = ast.parse(inspect.getsource(cls))
+    body = tree.body[0].body
+    docs = {}
+    for node, following in zip(body, body[1:], strict=False):
+        is_doc = isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and is_doc:
+            docs[node.target.id] = " ".join(str(following.value.value).split())
+    return docs
+
+
+def _add_fields(group, cls, skip=()) -> None:
+    docs = field_docs(cls)
+    for f in dataclasses.fields(cls):
+        if f.name in skip:
+            continue
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        flag = "--" + f.name.replace("_", "-")
+        help_text = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
+        kwargs = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_text}
+        if isinstance(default, bool):
+            group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
+        elif isinstance(default, tuple):
+            group.add_argument(flag, type=type(default[0]), nargs="+", metavar="N", **kwargs)
+        else:
+            group.add_argument(flag, type=type(default), choices=CHOICES.get(f.name), **kwargs)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``activeperc-train`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="activeperc-train",
+        description="Train the mover and the looker (the paper's meta-evaluation or a baseline) on the "
+        "active-perception rooms. With no arguments: the meta method on the default preset.",
+    )
+    run = parser.add_argument_group("run")
+    run.add_argument("--out", help="run directory (default: runs/METHOD-seedS-TIME)")
+    run.add_argument("--resume", action="store_true", help="continue the run in --out up to --frames")
+    run.add_argument("--config", metavar="PRESET.yaml", help="YAML preset of options (flags override it)")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_fields(parser.add_argument_group("training"), TrainConfig, skip=("env",))
+    _add_fields(parser.add_argument_group("environment"), EnvConfig)
+    return parser
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """Merge defaults, the preset (or the resumed run's config) and the flags into a ``TrainConfig``."""
+    from activeperc_rl.train import load_run_config
+
+    env_names = {f.name for f in dataclasses.fields(EnvConfig)}
+    flags = {k: v for k, v in vars(args).items() if k not in ("out", "resume", "config", "no_progress")}
+    if args.resume:
+        if args.out is None:
+            raise ValueError("--resume needs --out RUN_DIR")
+        if args.config is not None:
+            raise ValueError("--resume takes the run's own config.yaml; drop --config")
+        return load_run_config(args.out).replace(**flags)
+    values = load_yaml(args.config) if args.config else {}
+    env = dict(values.pop("env", None) or {})
+    env |= {k: v for k, v in flags.items() if k in env_names}
+    values |= {k: v for k, v in flags.items() if k not in env_names}
+    return TrainConfig.from_dict(values | {"env": env})
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``activeperc-train``."""
+    from activeperc_rl.train import train
+
+    args = build_parser().parse_args(argv)
+    try:
+        config = config_from_args(args)
+        out = args.out or str(Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
+        print(f"activeperc-train: {config.method} for {config.frames} frames -> {out}", flush=True)
+        train(config, out, resume=args.resume, progress=not args.no_progress)
+    except ValueError as error:
+        print(f"activeperc-train: error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

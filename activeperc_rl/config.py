@@ -1,0 +1,166 @@
+"""The training configuration: one typed dataclass, every default defined here.
+
+The CLI flags of ``activeperc-train`` are generated from these fields (and from
+:class:`~activeperc_env.EnvConfig`'s, under ``env``), and YAML presets hold the same names::
+
+    method: meta
+    frames: 200000
+    env:
+      fov: 100
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from activeperc_env import EnvConfig
+
+METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
+DEVICES = ("auto", "cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Configuration of one training run; invalid values raise ``ValueError`` naming the field."""
+
+    method: str = "meta"
+    """'meta' (the paper's meta-evaluation), or a baseline: 'fixed_forward', 'joint', 'ia2c', 'curriculum'."""
+    frames: int = 150_000
+    """Environment cycles to train for, counted over every room of every environment (E1 and E2 both)."""
+    num_envs: int = 16
+    """Rooms stepped together in each environment (E1 and E2 have this many each)."""
+    rollout_length: int = 16
+    """Cycles per room in one rollout: a rollout holds num_envs * rollout_length frames."""
+    seed: int = 0
+    """Seed of the models, of the exploration and of the training layouts."""
+    device: str = "auto"
+    """Where the models run: 'cpu', 'cuda', or 'auto' (cuda when available)."""
+    gamma: float = 0.99
+    """Discount factor of the mover's (and IA2C looker's) A2C."""
+    gae_lambda: float = 0.95
+    """GAE lambda of the A2C advantage."""
+    lr: float = 7e-4
+    """Adam learning rate of the mover's actor and critic (and of the joint agent)."""
+    looker_lr: float = 3e-4
+    """Adam learning rate of the looker (phi2 for 'meta', the looker's actor-critic for 'ia2c')."""
+    entropy_coeff: float = 0.01
+    """Weight of the entropy bonus in every policy loss."""
+    critic_coeff: float = 0.5
+    """Weight of the critic's loss in the A2C loss."""
+    max_grad_norm: float = 0.5
+    """Gradient-norm clip of every update."""
+    epsilon: float = 0.3
+    """'meta': probability of a uniformly random look in E2 (otherwise argmax of phi2); the paper uses 0.1 and 0.3."""
+    alpha: float = 0.05
+    """'meta': soft-update rate, phi1 <- alpha phi2 + (1 - alpha) phi1 (the paper's 0.05)."""
+    shared_seeds: bool = True
+    """'meta': E1 and E2 get the same layout streams, so the meta-evaluator compares the two looker policies on the
+    same rooms (room i's k-th episode is the same layout in both)."""
+    resample_d1: bool = True
+    """'meta': sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per
+    iteration); False reuses the first D1 (2 rollouts per iteration)."""
+    curriculum_fraction: float = 0.3
+    """'curriculum': fraction of the frames spent pre-training the joint agent in a room without obstacles."""
+    channels: tuple[int, ...] = (16, 32)
+    """Output channels of the encoder's conv layers (kernels 8, 4, 3, ... with strides 4, 2, 1, ...)."""
+    hidden_size: int = 256
+    """Width of the encoder's output and of the heads' input."""
+    success_window: int = 100
+    """Finished episodes the progress bar's success rate and mean return are averaged over."""
+    checkpoint_every: float = 60.0
+    """Seconds between checkpoints (one is also written at the end and on Ctrl-C)."""
+    eval_episodes: int = 100
+    """Held-out episodes evaluated at the end of training (for the learned and a random policy); 0 skips it."""
+    env: EnvConfig = field(default_factory=EnvConfig)
+    """The environment (the same for E1 and E2 and for evaluation)."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.env, dict):
+            object.__setattr__(self, "env", EnvConfig.from_kwargs(**self.env))
+        if isinstance(self.channels, list):
+            object.__setattr__(self, "channels", tuple(self.channels))
+        checks = {
+            "method": (self.method in METHODS, f"one of {METHODS}"),
+            "frames": (_is_int(self.frames) and self.frames >= 1, "an int >= 1"),
+            "num_envs": (_is_int(self.num_envs) and self.num_envs >= 1, "an int >= 1"),
+            "rollout_length": (_is_int(self.rollout_length) and self.rollout_length >= 2, "an int >= 2"),
+            "seed": (_is_int(self.seed) and self.seed >= 0, "an int >= 0"),
+            "device": (self.device in DEVICES, f"one of {DEVICES}"),
+            "gamma": (0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
+            "gae_lambda": (0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
+            "lr": (self.lr > 0, "a number > 0"),
+            "looker_lr": (self.looker_lr > 0, "a number > 0"),
+            "entropy_coeff": (self.entropy_coeff >= 0, "a number >= 0"),
+            "critic_coeff": (self.critic_coeff > 0, "a number > 0"),
+            "max_grad_norm": (self.max_grad_norm > 0, "a number > 0"),
+            "epsilon": (0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
+            "alpha": (0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
+            "curriculum_fraction": (0.0 < self.curriculum_fraction < 1.0, "a number in (0, 1)"),
+            "channels": (
+                len(self.channels) >= 1 and all(_is_int(c) and c >= 1 for c in self.channels),
+                "one or more ints >= 1",
+            ),
+            "hidden_size": (_is_int(self.hidden_size) and self.hidden_size >= 1, "an int >= 1"),
+            "success_window": (_is_int(self.success_window) and self.success_window >= 1, "an int >= 1"),
+            "checkpoint_every": (self.checkpoint_every > 0, "seconds > 0"),
+            "eval_episodes": (_is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),
+        }
+        for name, (ok, expected) in checks.items():
+            if not ok:
+                raise ValueError(f"TrainConfig.{name}={getattr(self, name)!r} is invalid: expected {expected}")
+
+    @classmethod
+    def from_dict(cls, values: dict) -> TrainConfig:
+        """Build a config from a (YAML) mapping, naming any unknown key in a ``ValueError``."""
+        if not isinstance(values, dict):
+            raise ValueError(f"a training config must be a mapping of options, got {type(values).__name__}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown training option(s) {unknown}; known options: {sorted(known)}")
+        values = dict(values)
+        if not isinstance(values.get("env", EnvConfig()), EnvConfig):
+            values["env"] = EnvConfig.from_kwargs(**(values["env"] or {}))
+        return cls(**values)
+
+    def to_dict(self) -> dict:
+        """The config as plain YAML-ready values (the env config nested under ``env``)."""
+        values = dataclasses.asdict(self)
+        values["channels"] = list(self.channels)
+        return values
+
+    def replace(self, **changes) -> TrainConfig:
+        """A copy with ``changes`` applied; env fields may be given by name too (``fov=100``)."""
+        env_fields = {f.name for f in dataclasses.fields(EnvConfig)}
+        env_changes = {k: changes.pop(k) for k in list(changes) if k in env_fields}
+        if env_changes:
+            changes["env"] = dataclasses.replace(self.env, **env_changes)
+        values = self.to_dict() | changes
+        return TrainConfig.from_dict(values)
+
+
+def load_yaml(path: str | Path) -> dict:
+    """Read a YAML preset (a mapping); a missing file or a non-mapping raises ``ValueError``."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"config file {str(path)!r} does not exist")
+    values = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(values, dict):
+        raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
+    return values
+
+
+def save_yaml(config: TrainConfig, path: str | Path) -> None:
+    """Write ``config`` as YAML (written to a temporary file first, then renamed over ``path``)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
+    tmp.replace(path)
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)

@@ -1,0 +1,163 @@
+"""Evaluation on held-out layouts: success rate and mean return, optionally a video.
+
+Evaluation rooms draw odd episode seeds and training rooms even ones (``split="eval"`` of
+:func:`~activeperc_rl.envs.make_env`), so no evaluation layout was seen in training. ``N`` episodes
+are spread over the rooms as fixed quotas (room ``i`` plays its first ``N_i`` episodes), so short
+episodes are not over-counted, and the same seed gives the same episodes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
+
+from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
+from activeperc_rl.config import TrainConfig
+from activeperc_rl.envs import LOOKER, MOVER, make_env
+from activeperc_rl.models import RandomPolicy
+
+MAX_ROOMS = 16
+
+
+def evaluate(
+    config: TrainConfig,
+    mover_policy=None,
+    looker=None,
+    episodes: int = 100,
+    seed: int = 0,
+    device="cpu",
+    video: str | Path | None = None,
+) -> dict:
+    """Play ``episodes`` held-out episodes and summarise them.
+
+    Args:
+        config: the run's config (its env config is used).
+        mover_policy: the mover's policy; ``None`` evaluates uniformly random mover and looker.
+        looker: a looker module run inside the cycle, or ``None`` when ``mover_policy`` writes both
+            actions (or for the random policy).
+        episodes: number of episodes.
+        seed: seed of the layouts and of the policies' sampling.
+        device: where the policies run.
+        video: write room 0's first episode (first-person view beside the bird's-eye map) here.
+
+    Returns:
+        ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
+    """
+    if not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
+    if mover_policy is None:
+        mover_policy, looker = RandomPolicy((MOVER, LOOKER)), None
+    rooms = min(episodes, MAX_ROOMS)
+    quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
+    returns, lengths = [[] for _ in range(rooms)], [[] for _ in range(rooms)]
+    frames = []
+    env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", **dataclasses.asdict(config.env))
+    try:
+        with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+            torch.manual_seed(seed)
+            td = env.reset()
+            steps = np.zeros(rooms, dtype=np.int64)
+            while any(len(r) < q for r, q in zip(returns, quota, strict=True)):
+                td = mover_policy(td)
+                td = env.step(td)
+                steps += 1
+                if video is not None and not returns[0]:
+                    frames.append(_video_frame(env, td))  # before an auto-reset replaces room 0
+                following = env.maybe_reset(step_mdp(td, keep_other=True))
+                done = td.get(("next", "done")).reshape(-1).cpu().numpy()
+                reward = td.get(("next", MOVER, "reward")).reshape(-1).cpu().numpy()
+                for i in np.flatnonzero(done):
+                    if len(returns[i]) < quota[i]:
+                        returns[i].append(float(reward[i]))
+                        lengths[i].append(int(steps[i]))
+                    steps[i] = 0
+                td = following
+    finally:
+        env.close()
+    if video is not None:
+        _write_video(video, frames)
+    flat = np.concatenate([np.asarray(r) for r in returns])
+    return {
+        "episodes": int(flat.size),
+        "success_rate": float(np.mean(flat > 0)),
+        "mean_return": float(np.mean(flat)),
+        "mean_length": float(np.mean(np.concatenate([np.asarray(n) for n in lengths]))),
+    }
+
+
+def load_policy(path: str | Path, device="cpu"):
+    """Load a run directory or a checkpoint file: ``(config, mover_policy, looker)``.
+
+    Raises ``ValueError`` naming the path when it is neither, or when the checkpoint is unusable.
+    """
+    from activeperc_rl.methods import make_method
+
+    path = Path(path)
+    file = path / CHECKPOINT if path.is_dir() else path
+    if not path.exists():
+        raise ValueError(f"{str(path)!r} does not exist: give a run directory or a checkpoint file")
+    state = load_checkpoint(file)
+    config = TrainConfig.from_dict(state["config"])
+    method = make_method(config, torch.device(device), start=False)
+    method.load_state_dict(state["method"])
+    mover_policy, looker = method.policy()
+    return config, mover_policy, looker
+
+
+def _video_frame(env, td) -> np.ndarray:
+    """Room 0's first-person view (upscaled to the map's height) beside its bird's-eye map."""
+    view = td.get(("next", MOVER, "observation", "image"))[0].cpu().numpy()
+    top = env.sim.render_map(0)
+    scale = max(1, top.shape[0] // view.shape[0])
+    view = view.repeat(scale, axis=0).repeat(scale, axis=1)
+    pad = np.zeros((top.shape[0], view.shape[1], 3), dtype=np.uint8)
+    pad[: view.shape[0]] = view[: top.shape[0]]
+    return np.concatenate([pad, top], axis=1)
+
+
+def _write_video(path: str | Path, frames: list[np.ndarray]) -> None:
+    import imageio.v2 as imageio
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    imageio.mimwrite(tmp, frames, fps=10, macro_block_size=1)
+    tmp.replace(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``activeperc-eval``: evaluate a run (or a random policy in the run's config) on held-out episodes."""
+    parser = argparse.ArgumentParser(prog="activeperc-eval", description=main.__doc__)
+    parser.add_argument("run", help="a run directory (holding checkpoint.pt) or a checkpoint file")
+    parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the held-out layouts (default 0)")
+    parser.add_argument("--random", action="store_true", help="evaluate uniformly random mover and looker instead")
+    parser.add_argument("--video", metavar="FILE.mp4", help="write the first episode's view and map to FILE.mp4")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--device", default="cpu", help="device of the policy (default cpu)")
+    args = parser.parse_args(argv)
+    try:
+        config, mover_policy, looker = load_policy(args.run, args.device)
+        if args.random:
+            mover_policy, looker = None, None
+        result = evaluate(config, mover_policy, looker, args.episodes, args.seed, args.device, args.video)
+    except ValueError as error:
+        print(f"activeperc-eval: error: {error}", file=sys.stderr)
+        return 2
+    result = {"policy": "random" if args.random else config.method, **result}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(
+            f"{result['policy']}: success rate {result['success_rate']:.3f}, mean return {result['mean_return']:.3f} "
+            f"over {result['episodes']} held-out episodes (seed {args.seed})"
+        )
+    return 0
+

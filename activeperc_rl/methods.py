@@ -1,0 +1,430 @@
+"""The training methods: the paper's meta-evaluation and its four baselines, one iteration each.
+
+Every method owns its networks, optimizers, environments and collectors, and exposes
+:meth:`Method.iterate` (collect, then update) plus what a checkpoint and an evaluation need.
+The mover is always trained by A2C (TorchRL's ``A2CLoss`` with GAE) on its own rollouts.
+
+========================  ===========================================================================
+method                    what runs in the mover's loop, and what learns
+========================  ===========================================================================
+``meta``                  the paper's section 3 (see :class:`Meta`): phi1 in E1, epsilon-greedy phi2 in E2
+``fixed_forward``         the camera held forward; only the mover learns
+``joint``                 one agent with the action space U^m x U^c (9 actions) on the mover's view
+``ia2c``                  a looker trained by its own A2C on the shared reward, acting on ``s_bar``
+``curriculum``            ``joint``, pre-trained without obstacles for a fraction of the frames
+========================  ===========================================================================
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictSequential
+from torch import nn
+from torchrl.collectors import Collector
+from torchrl.objectives import A2CLoss, ValueEstimators
+
+from activeperc_rl.config import TrainConfig
+from activeperc_rl.envs import LOOKER, MOVER, make_env
+from activeperc_rl.losses import MetaEvaluationLoss
+from activeperc_rl.models import (
+    JOINT,
+    EpsilonGreedyLooker,
+    FixedLooker,
+    make_actor,
+    make_critic,
+    make_encoder,
+    make_joint_policy,
+)
+
+
+@dataclass
+class Iteration:
+    """What one training iteration did."""
+
+    frames: int
+    """Environment cycles stepped, over every room of every environment."""
+    returns: list[float] = field(default_factory=list)
+    """Returns of the episodes that ended in the rollouts that measure the deployed policy."""
+    losses: dict[str, float] = field(default_factory=dict)
+    """Scalar losses and diagnostics of the updates."""
+
+
+class Method:
+    """Base of the training methods: builds the mover's A2C; subclasses add the looker's part.
+
+    Args:
+        config: the training configuration.
+        device: where the networks run.
+    """
+
+    def __init__(self, config: TrainConfig, device: torch.device, collect: bool = True):
+        self.config = config
+        self.device = device
+        self.collect = collect
+        self.env_seed = config.seed
+        self.collectors: list[Collector] = []
+        self._iterators: dict[int, object] = {}
+        self.modules: dict[str, nn.Module] = {}
+        self.optimizers: dict[str, torch.optim.Optimizer] = {}
+
+    # ---------------------------------------------------------------- construction helpers
+    def _encoder(self):
+        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size).to(self.device)
+
+    def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
+        """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
+        cfg, owner = self.config, action_agent or agent
+        loss = A2CLoss(
+            actor,
+            critic,
+            entropy_coeff=cfg.entropy_coeff,
+            critic_coeff=cfg.critic_coeff,
+            loss_critic_type="l2",
+            functional=False,
+        )
+        loss.set_keys(
+            reward=(agent, "reward"),
+            action=(owner, "action"),
+            sample_log_prob=(owner, "action_log_prob"),
+            value="state_value",
+        )
+        loss.make_value_estimator(ValueEstimators.GAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
+        return loss
+
+    def _collector(self, policy, looker=None, seed_offset: int = 0, **env_overrides) -> Collector:
+        cfg = self.config
+        env_config = dataclasses.asdict(cfg.env) | env_overrides
+        env = make_env(cfg.num_envs, device=self.device, looker=looker, **env_config)
+        env.set_seed(self.env_seed + seed_offset)
+        collector = Collector(
+            env,
+            policy,
+            frames_per_batch=cfg.num_envs * cfg.rollout_length,
+            total_frames=-1,
+            device=self.device,
+            auto_register_policy_transforms=False,
+        )
+        self.collectors.append(collector)
+        self._iterators[id(collector)] = iter(collector)
+        return collector
+
+    def _next(self, collector: Collector) -> TensorDictBase:
+        """The next rollout of ``collector``, shape ``[num_envs, rollout_length]``."""
+        return next(self._iterators[id(collector)])
+
+    def _optimizer(self, name: str, modules: list[nn.Module], lr: float) -> None:
+        params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
+        self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5)
+
+    def _step(self, name: str, losses: TensorDictBase) -> dict[str, float]:
+        """One optimizer step on the sum of the ``loss_*`` entries; returns them as floats."""
+        total = sum(v for k, v in losses.items() if k.startswith("loss_"))
+        optimizer = self.optimizers[name]
+        optimizer.zero_grad(set_to_none=True)
+        total.backward()
+        params = [p for group in optimizer.param_groups for p in group["params"]]
+        torch.nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)
+        optimizer.step()
+        return {f"{name}/{k}": float(v.detach()) for k, v in losses.items() if v.numel() == 1}
+
+    # ---------------------------------------------------------------- interface
+    def start(self) -> None:
+        """Build the environments and collectors."""
+        raise NotImplementedError
+
+    def iterate(self) -> Iteration:
+        """Collect rollouts and update the networks once."""
+        raise NotImplementedError
+
+    def policy(self):
+        """The deployed policy for evaluation: ``(mover_policy, looker_module_or_None)``.
+
+        With a looker module, the env runs it inside the cycle (looker mode); without one the
+        mover policy writes both agents' actions (external mode, the joint agent).
+        """
+        raise NotImplementedError
+
+    def state_dict(self) -> dict:
+        """Networks, optimizers and the method's own counters."""
+        return {
+            "modules": {k: m.state_dict() for k, m in self.modules.items()},
+            "optimizers": {k: o.state_dict() for k, o in self.optimizers.items()},
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore what :meth:`state_dict` returned."""
+        missing = sorted(set(self.modules) ^ set(state["modules"]))
+        if missing:
+            raise ValueError(
+                f"the checkpoint's networks {sorted(state['modules'])} do not match {sorted(self.modules)}"
+            )
+        for k, module in self.modules.items():
+            module.load_state_dict(state["modules"][k])
+        for k, optimizer in self.optimizers.items():
+            optimizer.load_state_dict(state["optimizers"][k])
+
+    def close(self) -> None:
+        """Shut the collectors and their environments down."""
+        for collector in self.collectors:
+            collector.shutdown()
+        self.collectors.clear()
+        self._iterators.clear()
+
+
+class _MoverA2C(Method):
+    """The mover's actor and critic w1 (one shared encoder) and their A2C loss."""
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        encoder = self._encoder()
+        self.actor = make_actor(encoder, config.hidden_size, MOVER)
+        self.critic = make_critic(encoder, config.hidden_size, MOVER)
+        self.mover_loss = self._a2c(self.actor, self.critic, MOVER)
+        self.modules.update(mover_actor=self.actor, mover_critic=self.critic)
+        self._optimizer("mover", [self.actor, self.critic], config.lr)
+
+    def _update_mover(self, rollout: TensorDictBase) -> dict[str, float]:
+        return self._step("mover", self.mover_loss(rollout))
+
+
+class FixedForward(_MoverA2C):
+    """Fixed_Forward: the looker always holds, so the camera stays forward; the mover learns by A2C.
+
+    The hold is written by the policy next to the mover's action (the env's external mode), so no
+    looker view is rendered.
+    """
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        self.fixed_policy = TensorDictSequential(self.actor, FixedLooker())
+
+    def start(self) -> None:
+        """Build the environment."""
+        self.collector = self._collector(self.fixed_policy)
+
+    def iterate(self) -> Iteration:
+        """One rollout, one A2C step."""
+        rollout = self._next(self.collector)
+        losses = self._update_mover(rollout)
+        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+
+    def policy(self):
+        """The mover, with the camera held forward."""
+        return self.fixed_policy, None
+
+
+class IA2C(_MoverA2C):
+    """IA2C: mover and looker are independent A2C learners on the shared reward.
+
+    The looker acts on ``s_bar`` inside the cycle. Its transition runs from ``s_bar_t`` to
+    ``s_bar_{t+1}`` and its reward is the next move's, ``r_{t+1}`` (see :func:`looker_transitions`).
+    """
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        encoder = self._encoder()
+        self.looker_actor = make_actor(encoder, config.hidden_size, LOOKER)
+        self.looker_critic = make_critic(encoder, config.hidden_size, LOOKER)
+        self.looker_loss = self._a2c(self.looker_actor, self.looker_critic, LOOKER)
+        self.modules.update(looker_actor=self.looker_actor, looker_critic=self.looker_critic)
+        self._optimizer("looker", [self.looker_actor, self.looker_critic], config.looker_lr)
+
+    def start(self) -> None:
+        """Build the environment, with the looker in the loop."""
+        self.collector = self._collector(self.actor, looker=self.looker_actor)
+
+    def iterate(self) -> Iteration:
+        """One rollout; an A2C step for the mover and one for the looker on the same rollout."""
+        rollout = self._next(self.collector)
+        losses = self._update_mover(rollout)
+        transitions, valid = looker_transitions(rollout)
+        with torch.no_grad():
+            self.looker_loss.value_estimator(transitions)
+        losses |= self._step("looker", self.looker_loss(transitions[valid]))
+        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+
+    def policy(self):
+        """The mover with the learned looker in the loop."""
+        return self.actor, self.looker_actor
+
+
+class Joint(Method):
+    """Joint: one agent picks (u_m, u_c) as one of 9 actions from the mover's view, trained by A2C."""
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        encoder = self._encoder()
+        self.actor = make_actor(encoder, config.hidden_size, JOINT, num_actions=9, reads=MOVER)
+        self.critic = make_critic(encoder, config.hidden_size, MOVER)
+        self.joint_policy = make_joint_policy(self.actor)
+        self.loss = self._a2c(self.actor, self.critic, MOVER, action_agent=JOINT)
+        self.modules.update(joint_actor=self.actor, joint_critic=self.critic)
+        self._optimizer("joint", [self.actor, self.critic], config.lr)
+
+    def start(self) -> None:
+        """Build the environment."""
+        self.collector = self._collector(self.joint_policy)
+
+    def iterate(self) -> Iteration:
+        """One rollout, one A2C step."""
+        rollout = self._next(self.collector)
+        losses = self._step("joint", self.loss(rollout))
+        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+
+    def policy(self):
+        """The joint agent, writing both actions."""
+        return self.joint_policy, None
+
+
+class Curriculum(Joint):
+    """Curriculum: :class:`Joint` trained in an empty room for ``curriculum_fraction`` of the frames, then with
+    the configured obstacles (same networks and optimizer)."""
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        self.frames = 0
+        self.switch_at = int(config.curriculum_fraction * config.frames)
+
+    def _phase(self) -> dict:
+        """Env options of the current phase: no obstacles until ``switch_at`` frames."""
+        return {"num_obstacles": 0} if self.frames < self.switch_at else {}
+
+    def start(self) -> None:
+        """Build the environment of the current phase."""
+        self.collector = self._collector(self.joint_policy, **self._phase())
+
+    def iterate(self) -> Iteration:
+        """One joint iteration; switches to the obstacle room once the pre-training frames are spent."""
+        if self.collector.env.config != dataclasses.replace(self.config.env, **self._phase()):
+            self.close()
+            self.start()
+        iteration = super().iterate()
+        self.frames += iteration.frames
+        iteration.losses["curriculum/obstacles"] = float(self.collector.env.config.num_obstacles)
+        return iteration
+
+    def state_dict(self) -> dict:
+        """Networks, optimizer and the frames seen (which decide the phase)."""
+        return super().state_dict() | {"frames": self.frames}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore networks, optimizer and the phase."""
+        super().load_state_dict(state)
+        self.frames = state["frames"]
+
+
+class Meta(_MoverA2C):
+    """The paper's meta-evaluation (section 3), one iteration as in DESIGN.md section 4.
+
+    1. roll the mover out with phi1 in E1 (D1) and with epsilon-greedy phi2 in E2 (D2);
+    2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);
+    3. REINFORCE step on phi2 with V(tau_k) in place of the return;
+    4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
+    5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it;
+    6. copy w1 -> w2.
+    """
+
+    def __init__(self, config: TrainConfig, device: torch.device):
+        super().__init__(config, device)
+        self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER)
+        self.phi1 = copy.deepcopy(self.phi2)
+        self.phi1.requires_grad_(False)
+        self.w2 = copy.deepcopy(self.critic)
+        self.w2.requires_grad_(False)
+        self.meta_loss = MetaEvaluationLoss(self.phi2, self.w2, self.critic, entropy_coeff=config.entropy_coeff)
+        self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
+        self._optimizer("looker", [self.phi2], config.looker_lr)
+
+    def start(self) -> None:
+        """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
+        e2_seed_offset = 0 if self.config.shared_seeds else 1
+        self.e1 = self._collector(self.actor, looker=self.phi1)
+        self.e2 = self._collector(
+            self.actor, looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon), seed_offset=e2_seed_offset
+        )
+
+    def iterate(self) -> Iteration:
+        """Steps 1 to 6 of the class docstring."""
+        d1, d2 = self._next(self.e1), self._next(self.e2)
+        frames, returns = d1.numel() + d2.numel(), finished_returns(d1)
+        losses = self._step("looker", self.meta_loss(d2, d1))
+        soft_update(self.phi1, self.phi2, self.config.alpha)
+        if self.config.resample_d1:
+            d1 = self._next(self.e1)
+            frames += d1.numel()
+            returns += finished_returns(d1)
+        losses |= self._update_mover(d1)
+        self.w2.load_state_dict(self.critic.state_dict())
+        losses["meta/e2_success_rate"] = _success_rate(finished_returns(d2))
+        return Iteration(frames, returns, losses)
+
+    def policy(self):
+        """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper."""
+        return self.actor, self.phi1
+
+
+METHOD_CLASSES = {
+    "meta": Meta,
+    "fixed_forward": FixedForward,
+    "joint": Joint,
+    "ia2c": IA2C,
+    "curriculum": Curriculum,
+}
+
+
+def make_method(config: TrainConfig, device: torch.device, start: bool = True) -> Method:
+    """Build the configured method's networks and optimizers, and (``start``) its environments and collectors."""
+    method = METHOD_CLASSES[config.method](config, device)
+    if start:
+        method.start()
+    return method
+
+
+@torch.no_grad()
+def soft_update(target: nn.Module, source: nn.Module, alpha: float) -> None:
+    """``target <- alpha * source + (1 - alpha) * target``, parameter by parameter (the paper's eq. 3)."""
+    for t, s in zip(target.parameters(), source.parameters(), strict=True):
+        t.lerp_(s, alpha)
+
+
+def finished_returns(rollout: TensorDictBase) -> list[float]:
+    """Returns of the episodes that ended inside ``rollout``.
+
+    The env's reward is 0 at every cycle but the one that reaches the goal, so an episode's return
+    is its last cycle's reward.
+    """
+    done = rollout.get(("next", "done")).reshape(-1)
+    reward = rollout.get(("next", MOVER, "reward")).reshape(-1)
+    return reward[done].tolist()
+
+
+def looker_transitions(rollout: TensorDictBase) -> tuple[TensorDict, torch.Tensor]:
+    """The looker's own transitions from a looker-mode rollout of shape ``[N, T]``, and which are valid.
+
+    Step ``t`` of the result is ``(s_bar_t, u_c_t) -> (r_{t+1}, s_bar_{t+1}, done_{t+1})``: the look at
+    cycle ``t`` pays off at the next move. A look made after the move that ended the episode
+    (``done_t``) has no consequence and is invalid. The shape is ``[N, T - 1]``.
+    """
+    record = rollout.get(("next", LOOKER))
+    done = rollout.get(("next", "done"))
+    now = record[:, :-1].select("observation", "action", "action_log_prob")
+    following = TensorDict(
+        {
+            LOOKER: {"observation": record.get("observation")[:, 1:], "reward": record.get("reward")[:, 1:]},
+            "done": done[:, 1:],
+            "terminated": rollout.get(("next", "terminated"))[:, 1:],
+        },
+        batch_size=now.batch_size,
+    )
+    transitions = TensorDict({LOOKER: now, "next": following}, batch_size=now.batch_size)
+    return transitions, ~done[..., :-1, 0]
+
+
+def _success_rate(returns: list[float]) -> float:
+    return float(np.mean([r > 0 for r in returns])) if returns else float("nan")

@@ -1,0 +1,164 @@
+"""The networks: a CNN encoder of (image, pan) and the actors and critics built on it.
+
+Every policy reads one agent's observation group (``("mover", "observation")`` or
+``("looker", "observation")``) and is a TorchRL ``ProbabilisticActor`` over a categorical
+distribution, writing ``(agent, "logits")``, ``(agent, "action")`` and
+``(agent, "action_log_prob")``. Critics write ``"state_value"``. The mover's actor and critic
+share one encoder (as in the usual pixel A2C); the looker's networks have their own.
+"""
+
+from __future__ import annotations
+
+import torch
+from tensordict.nn import TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.modules import ProbabilisticActor
+
+from activeperc_env import EnvConfig
+
+JOINT = "joint"
+NUM_ACTIONS = 3
+
+
+class Encoder(nn.Module):
+    """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan, then a linear layer.
+
+    Args:
+        height, width: the image size.
+        channels: output channels of the conv layers (kernel 8 stride 4, then 4/2, then 3/1).
+        hidden_size: width of the output features.
+    """
+
+    KERNELS = ((8, 4), (4, 2), (3, 1))
+
+    def __init__(self, height: int, width: int, channels: tuple[int, ...], hidden_size: int):
+        super().__init__()
+        layers, in_ch, h, w = [], 3, height, width
+        for i, out_ch in enumerate(channels):
+            kernel, stride = self.KERNELS[min(i, len(self.KERNELS) - 1)]
+            if h < kernel or w < kernel:
+                raise ValueError(f"channels={tuple(channels)} has too many conv layers for a {width}x{height} image")
+            layers += [nn.Conv2d(in_ch, out_ch, kernel, stride), nn.ReLU()]
+            in_ch, h, w = out_ch, (h - kernel) // stride + 1, (w - kernel) // stride + 1
+        self.conv = nn.Sequential(*layers, nn.Flatten())
+        self.linear = nn.Sequential(nn.Linear(in_ch * h * w + 2, hidden_size), nn.ReLU())
+
+    def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
+        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)`` and ``pan (*batch, 1)``."""
+        batch = image.shape[:-3]
+        x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
+        x = self.conv(x)
+        pan = pan.reshape(-1, 1).to(x.dtype)
+        x = torch.cat([x, torch.sin(pan), torch.cos(pan)], dim=-1)
+        return self.linear(x).reshape(*batch, -1)
+
+
+class Head(nn.Module):
+    """An encoder followed by a linear layer: ``(image, pan) -> (*batch, out_features)``."""
+
+    def __init__(self, encoder: Encoder, hidden_size: int, out_features: int):
+        super().__init__()
+        self.encoder = encoder
+        self.out = nn.Linear(hidden_size, out_features)
+
+    def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
+        """Apply the encoder, then the output layer."""
+        return self.out(self.encoder(image, pan))
+
+
+def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int) -> Encoder:
+    """An :class:`Encoder` sized for ``env``'s images."""
+    return Encoder(env.height, env.width, channels, hidden_size)
+
+
+def observation_keys(agent: str) -> list[tuple[str, ...]]:
+    """The input keys of ``agent``'s networks: its image and its pan."""
+    return [(agent, "observation", "image"), (agent, "observation", "pan")]
+
+
+def make_actor(
+    encoder: Encoder, hidden_size: int, agent: str, num_actions: int = NUM_ACTIONS, reads: str | None = None
+):
+    """A categorical ``ProbabilisticActor`` for ``agent`` on the observation of ``reads`` (default: ``agent``)."""
+    logits = TensorDictModule(
+        Head(encoder, hidden_size, num_actions), in_keys=observation_keys(reads or agent), out_keys=[(agent, "logits")]
+    )
+    return ProbabilisticActor(
+        logits,
+        in_keys={"logits": (agent, "logits")},
+        out_keys=[(agent, "action")],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+        log_prob_key=(agent, "action_log_prob"),
+    )
+
+
+def make_critic(encoder: Encoder, hidden_size: int, agent: str) -> TensorDictModule:
+    """A state-value network on ``agent``'s observation, writing ``"state_value"``."""
+    return TensorDictModule(Head(encoder, hidden_size, 1), in_keys=observation_keys(agent), out_keys=["state_value"])
+
+
+class SplitJoint(nn.Module):
+    """Split a joint action ``a = 3 u_m + u_c`` (as in ``activeperc/Joint-v0``) into the two agents' actions."""
+
+    def forward(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(u_m, u_c)`` from the joint action."""
+        return torch.div(action, NUM_ACTIONS, rounding_mode="floor"), action % NUM_ACTIONS
+
+
+def make_joint_policy(actor) -> TensorDictSequential:
+    """The joint actor (acting on the mover's view) followed by the split into the two agents' actions."""
+    split = TensorDictModule(
+        SplitJoint(), in_keys=[(JOINT, "action")], out_keys=[("mover", "action"), ("looker", "action")]
+    )
+    return TensorDictSequential(actor, split)
+
+
+class EpsilonGreedyLooker(nn.Module):
+    """E2's looker: ``argmax`` of ``phi2``'s logits with probability ``1 - epsilon``, else a uniform random look.
+
+    Reads ``("looker", "observation")`` and writes ``("looker", "action")`` (the paper's eq. after (3)).
+    """
+
+    def __init__(self, actor, epsilon: float):
+        super().__init__()
+        self.actor = actor
+        self.epsilon = epsilon
+
+    def forward(self, tensordict):
+        """Write the epsilon-greedy action into ``tensordict``."""
+        logits = self.actor[0](tensordict.copy()).get(("looker", "logits"))
+        greedy = logits.argmax(-1)
+        random = torch.randint_like(greedy, NUM_ACTIONS)
+        explore = torch.rand(greedy.shape, device=greedy.device) < self.epsilon
+        tensordict.set(("looker", "action"), torch.where(explore, random, greedy))
+        return tensordict
+
+
+class FixedLooker(nn.Module):
+    """Writes the same look for every room (``1``, 'hold', keeps the camera forward)."""
+
+    def __init__(self, action: int = 1):
+        super().__init__()
+        self.action = action
+
+    def forward(self, tensordict):
+        """Write the constant action into ``tensordict``."""
+        action = torch.full(tuple(tensordict.batch_size), self.action, device=tensordict.device)
+        tensordict.set(("looker", "action"), action)
+        return tensordict
+
+
+class RandomPolicy(nn.Module):
+    """Uniformly random actions for the given agents (for the random baseline of ``activeperc-eval``)."""
+
+    def __init__(self, agents: tuple[str, ...]):
+        super().__init__()
+        self.agents = agents
+
+    def forward(self, tensordict):
+        """Write a uniform random action for every agent into ``tensordict``."""
+        for agent in self.agents:
+            action = torch.randint(NUM_ACTIONS, tuple(tensordict.batch_size), device=tensordict.device)
+            tensordict.set((agent, "action"), action)
+        return tensordict

@@ -1,0 +1,172 @@
+"""The training pipeline end to end: every method from the CLI, checkpoints, resume, evaluation."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import torch
+import yaml
+
+from activeperc_rl import cli, evaluate
+from activeperc_rl.checkpoint import load_checkpoint, save_checkpoint
+from activeperc_rl.config import METHODS, TrainConfig
+
+# A few thousand frames on tiny settings: short episodes so that some end inside the run.
+TINY = [
+    "--num-envs", "4", "--rollout-length", "8", "--max-cycles", "12", "--channels", "8",
+    "--hidden-size", "32", "--eval-episodes", "4", "--no-progress",
+]  # fmt: skip
+
+
+def run_cli(tmp_path, *args, name="run"):
+    out = tmp_path / name
+    assert cli.main([*TINY, "--out", str(out), *args]) == 0
+    return out
+
+
+def read_metrics(out):
+    with open(out / "metrics.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_trains_from_the_cli(tmp_path, method):
+    out = run_cli(tmp_path, "--method", method, "--frames", "2000", "--seed", "1")
+    rows = read_metrics(out)
+    frames = [int(r["frames"]) for r in rows]
+    assert frames == sorted(frames) and frames[-1] >= 2000
+    assert {"frames", "fps", "success_rate", "mean_return"} <= set(rows[0])
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["method"] == method and saved["env"]["max_cycles"] == 12
+    state = load_checkpoint(out / "checkpoint.pt")
+    assert state["frames"] == frames[-1]
+    result = json.loads((out / "eval.json").read_text())
+    assert result["learned"]["episodes"] == result["random"]["episodes"] == 4
+    assert any(p.name.startswith("events") for p in (out / "tb").iterdir())
+
+
+def test_same_seed_same_run(tmp_path):
+    runs = [run_cli(tmp_path, "--method", "meta", "--frames", "600", name=f"r{i}") for i in range(2)]
+    keep = ("frames", "success_rate", "mean_return", "episodes")
+    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in runs)
+    assert a == b
+    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in runs)
+    for name in sa:
+        for key, value in sa[name].items():
+            assert torch.equal(value, sb[name][key]), (name, key)
+
+
+def test_existing_run_is_not_overwritten(tmp_path, capsys):
+    out = run_cli(tmp_path, "--frames", "200", "--method", "fixed_forward", "--eval-episodes", "0")
+    assert cli.main([*TINY, "--out", str(out), "--frames", "400"]) == 2
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_resume_continues_to_the_new_budget(tmp_path):
+    out = run_cli(tmp_path, "--method", "ia2c", "--frames", "256", "--eval-episodes", "0")
+    before = read_metrics(out)
+    assert cli.main(["--out", str(out), "--resume", "--frames", "768", "--no-progress"]) == 0
+    frames = [int(r["frames"]) for r in read_metrics(out)]
+    assert frames[: len(before)] == [int(r["frames"]) for r in before]
+    assert frames == sorted(set(frames)) and frames[-1] >= 768
+
+
+def test_resume_with_other_options_names_them(tmp_path, capsys):
+    out = run_cli(tmp_path, "--method", "joint", "--frames", "128", "--eval-episodes", "0")
+    assert cli.main(["--out", str(out), "--resume", "--fov", "100", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "fov" in err and "60" in err and "100" in err
+
+
+def test_resume_without_a_run_names_the_directory(tmp_path, capsys):
+    assert cli.main(["--out", str(tmp_path / "nothing"), "--resume"]) == 2
+    assert "nothing" in capsys.readouterr().err
+
+
+def test_bad_flags_are_named(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["--method", "dqn"])
+    assert "dqn" in capsys.readouterr().err
+    assert cli.main([*TINY, "--out", str(tmp_path / "x"), "--epsilon", "1.5"]) == 2
+    assert "epsilon" in capsys.readouterr().err
+
+
+def test_preset_then_flags(tmp_path):
+    preset = tmp_path / "p.yaml"
+    preset.write_text(yaml.safe_dump({"method": "joint", "epsilon": 0.1, "env": {"fov": 100, "max_cycles": 30}}))
+    args = cli.build_parser().parse_args(["--config", str(preset), "--fov", "80", "--seed", "3"])
+    config = cli.config_from_args(args)
+    assert (config.method, config.epsilon, config.seed) == ("joint", 0.1, 3)
+    assert (config.env.fov, config.env.max_cycles) == (80, 30)
+    preset.write_text(yaml.safe_dump({"methd": "joint"}))
+    with pytest.raises(ValueError, match="methd"):
+        cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
+
+
+def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, {"frames": 1})
+
+    def broken_save(obj, f):
+        f.write(b"half a checkpoint")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(torch, "save", broken_save)
+    with pytest.raises(KeyboardInterrupt):
+        save_checkpoint(path, {"frames": 2})
+    monkeypatch.undo()
+    assert torch.load(path)["frames"] == 1
+
+
+def test_ctrl_c_saves_and_resume_finishes(tmp_path):
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(read_metrics(out) if (out / "metrics.csv").exists() else []) < 3:
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)
+    output, _ = process.communicate(timeout=120)
+    assert process.returncode == 0, output
+    assert "checkpoint saved" in output
+    state = load_checkpoint(out / "checkpoint.pt")
+    rows = read_metrics(out)
+    assert state["frames"] == int(rows[-1]["frames"]) < 10_000_000
+    target = state["frames"] + 256
+    assert cli.main(["--out", str(out), "--resume", "--frames", str(target), "--no-progress"]) == 0
+    frames = [int(r["frames"]) for r in read_metrics(out)]
+    assert frames == sorted(set(frames)) and frames[-1] >= target
+    assert (out / "eval.json").exists()
+    assert not [p for p in os.listdir(out) if p.endswith(".tmp")]
+
+
+def test_eval_cli(tmp_path, capsys):
+    out = run_cli(tmp_path, "--method", "meta", "--frames", "256", "--eval-episodes", "0")
+    capsys.readouterr()
+    video = tmp_path / "episode.mp4"
+    assert evaluate.main([str(out), "--episodes", "5", "--seed", "2", "--json", "--video", str(video)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["episodes"] == 5 and 0 <= result["success_rate"] <= 1 and "mean_return" in result
+    assert video.stat().st_size > 0
+    assert evaluate.main([str(out / "checkpoint.pt"), "--episodes", "5", "--seed", "2", "--random", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["policy"] == "random"
+    assert evaluate.main([str(tmp_path / "missing")]) == 2
+    assert "missing" in capsys.readouterr().err
+
+
+def test_eval_is_reproducible_and_held_out(tmp_path):
+    config = TrainConfig(env={"max_cycles": 10})
+    a = evaluate.evaluate(config, episodes=6, seed=4)
+    b = evaluate.evaluate(config, episodes=6, seed=4)
+    assert a == b and a["episodes"] == 6 and a["mean_length"] <= 10
+    from activeperc_rl.envs import make_env
+
+    train_env, eval_env = make_env(3, seed=0), make_env(3, seed=0, split="eval")
+    train_env.reset(), eval_env.reset()
+    assert (train_env.episode_seeds % 2 == 0).all() and (eval_env.episode_seeds % 2 == 1).all()
+    train_env.close(), eval_env.close()
