@@ -1,0 +1,87 @@
+"""Pieces of the training methods on hand-made inputs: soft update, the looker's transitions, lookers."""
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torch import nn
+
+from activeperc_env import EnvConfig
+from activeperc_rl.methods import finished_returns, looker_transitions, soft_update
+from activeperc_rl.models import EpsilonGreedyLooker, FixedLooker, SplitJoint, make_actor, make_encoder
+
+
+def test_soft_update_is_eq_3():
+    target, source = nn.Linear(2, 1), nn.Linear(2, 1)
+    with torch.no_grad():
+        target.weight.fill_(1.0), target.bias.fill_(-2.0)
+        source.weight.fill_(3.0), source.bias.fill_(2.0)
+    soft_update(target, source, 0.05)
+    # 0.05 * 3 + 0.95 * 1 = 1.1 ; 0.05 * 2 + 0.95 * -2 = -1.8
+    assert torch.allclose(target.weight, torch.full((1, 2), 1.1))
+    assert torch.allclose(target.bias, torch.tensor([-1.8]))
+    assert torch.equal(source.weight, torch.full((1, 2), 3.0))
+
+
+def rollout(done, reward):
+    """A looker-mode rollout of 1 room and len(done) steps whose looker pans are 0, 1, 2, ..."""
+    t = len(done)
+    pan = torch.arange(t, dtype=torch.float32).reshape(1, t, 1)
+    record = {
+        "observation": {"image": torch.zeros(1, t, 2, 2, 3, dtype=torch.uint8), "pan": pan},
+        "action": torch.arange(t).reshape(1, t) % 3,
+        "action_log_prob": torch.zeros(1, t),
+        "reward": torch.tensor(reward, dtype=torch.float32).reshape(1, t, 1),
+    }
+    flags = torch.tensor(done).reshape(1, t, 1)
+    nxt = {"looker": record, "done": flags, "terminated": flags.clone(),
+           "mover": {"reward": torch.tensor(reward, dtype=torch.float32).reshape(1, t, 1)}}
+    return TensorDict({"next": nxt}, batch_size=[1, t])
+
+
+def test_looker_transitions_pay_the_next_move():
+    # cycles 0..4; the move of cycle 2 ends the episode with reward 0.9
+    td = rollout([False, False, True, False, False], [0.0, 0.0, 0.9, 0.0, 0.0])
+    transitions, valid = looker_transitions(td)
+    assert transitions.batch_size == (1, 4)
+    # the look of cycle 1 is paid by the move of cycle 2 and ends there
+    assert transitions["looker", "observation", "pan"][0, :, 0].tolist() == [0, 1, 2, 3]
+    assert transitions["next", "looker", "observation", "pan"][0, :, 0].tolist() == [1, 2, 3, 4]
+    assert transitions["next", "looker", "reward"][0, :, 0].tolist() == pytest.approx([0.0, 0.9, 0.0, 0.0])
+    assert transitions["next", "done"][0, :, 0].tolist() == [False, True, False, False]
+    # the look made after the episode-ending move (cycle 2) leads nowhere: invalid
+    assert valid[0].tolist() == [True, True, False, True]
+
+
+def test_finished_returns_are_last_rewards():
+    td = rollout([False, True, False, True, False], [0.0, 0.8, 0.0, 0.0, 0.0])
+    assert finished_returns(td) == pytest.approx([0.8, 0.0])
+
+
+def observation(n):
+    return TensorDict(
+        {"looker": {"observation": {"image": torch.randint(0, 255, (n, 60, 80, 3), dtype=torch.uint8),
+                                    "pan": torch.zeros(n, 1)}}},
+        batch_size=[n],
+    )
+
+
+def test_epsilon_greedy_looker():
+    torch.manual_seed(0)
+    actor = make_actor(make_encoder(EnvConfig(), (4,), 8), 8, "looker")
+    td = observation(300)
+    greedy = actor[0](td.clone())["looker", "logits"].argmax(-1)
+    assert torch.equal(EpsilonGreedyLooker(actor, 0.0)(td.clone())["looker", "action"], greedy)
+    uniform = EpsilonGreedyLooker(actor, 1.0)(td.clone())["looker", "action"]
+    counts = torch.bincount(uniform, minlength=3)
+    assert (counts > 60).all(), counts  # about 100 each
+    mixed = EpsilonGreedyLooker(actor, 0.3)(td.clone())["looker", "action"]
+    # 70 % greedy plus a third of the 30 % random picks the greedy action by chance: about 80 %
+    agree = (mixed == greedy).float().mean()
+    assert 0.7 < agree < 0.9, agree
+
+
+def test_fixed_looker_and_joint_split():
+    td = FixedLooker()(observation(4))
+    assert td["looker", "action"].tolist() == [1, 1, 1, 1]
+    mover, looker = SplitJoint()(torch.arange(9))
+    assert mover.tolist() == [0, 0, 0, 1, 1, 1, 2, 2, 2] and looker.tolist() == [0, 1, 2] * 3
