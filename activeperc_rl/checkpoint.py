@@ -37,7 +37,7 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     """Read a checkpoint; with ``config``, check that the checkpoint was trained with it.
 
     Raises ``ValueError`` naming the file when it is missing or unreadable, or naming the options
-    that differ from ``config`` (the training budget ``frames`` and ``device`` may differ).
+    that differ from ``config`` (those in :data:`RESUMABLE` may differ).
     """
     path = Path(path)
     if not path.is_file():
@@ -56,7 +56,11 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     return state
 
 
-def config_differences(saved: TrainConfig, config: TrainConfig, free=("frames", "device")) -> list[str]:
+RESUMABLE = ("frames", "device", "torch_threads", "checkpoint_every", "eval_episodes")
+"""Options a resumed run may change; every other one must match the checkpoint's."""
+
+
+def config_differences(saved: TrainConfig, config: TrainConfig, free=RESUMABLE) -> list[str]:
     """Human-readable ``name: saved -> new`` for every option that differs, except those in ``free``."""
     old, new = saved.to_dict(), config.to_dict()
     differ = [f"{k}: {old[k]!r} -> {new[k]!r}" for k in old if k not in free and k != "env" and old[k] != new[k]]

@@ -4,7 +4,7 @@ Every :class:`~activeperc_rl.config.TrainConfig` field and every
 :class:`~activeperc_env.EnvConfig` field is a flag (``num_envs`` -> ``--num-envs``, booleans get
 ``--x/--no-x``), documented by the field's docstring. Precedence: defaults, then the YAML preset
 given with ``--config``, then the flags. With ``--resume`` the run's own ``config.yaml`` is the
-base and only ``--frames`` and ``--device`` may change.
+base and only the options in :data:`~activeperc_rl.checkpoint.RESUMABLE` may change.
 """
 
 from __future__ import annotations

@@ -133,8 +133,11 @@ def _write_video(path: str | Path, frames: list[np.ndarray]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``activeperc-eval``: evaluate a run (or a random policy in the run's config) on held-out episodes."""
-    parser = argparse.ArgumentParser(prog="activeperc-eval", description=main.__doc__)
+    """Entry point of ``activeperc-eval``."""
+    parser = argparse.ArgumentParser(
+        prog="activeperc-eval",
+        description="Evaluate a run (or a random policy in the run's config) on held-out episodes.",
+    )
     parser.add_argument("run", help="a run directory (holding checkpoint.pt) or a checkpoint file")
     parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the held-out layouts (default 0)")

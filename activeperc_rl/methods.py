@@ -310,13 +310,13 @@ class Curriculum(Joint):
         return iteration
 
     def state_dict(self) -> dict:
-        """Networks, optimizer and the frames seen (which decide the phase)."""
-        return super().state_dict() | {"frames": self.frames}
+        """Networks, optimizer, the frames seen and the switch point (which decide the phase)."""
+        return super().state_dict() | {"frames": self.frames, "switch_at": self.switch_at}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore networks, optimizer and the phase."""
         super().load_state_dict(state)
-        self.frames = state["frames"]
+        self.frames, self.switch_at = state["frames"], state["switch_at"]
 
 
 class Meta(_MoverA2C):

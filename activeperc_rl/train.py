@@ -72,6 +72,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
     save_yaml(config, out / CONFIG)
 
     device = resolve_device(config.device)
+    if config.torch_threads:
+        torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
     method = make_method(config, device, start=False)
     frames, iteration, elapsed = 0, 0, 0.0
@@ -87,7 +89,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
     metrics = MetricsLog(out / METRICS, keep_until=frames if state is not None else None)
     from torch.utils.tensorboard import SummaryWriter
 
-    writer = SummaryWriter(str(out / "tb"), purge_step=iteration if state is not None else None)
+    # scalars are logged against frames: drop those written after the checkpoint
+    writer = SummaryWriter(str(out / "tb"), purge_step=frames + 1 if state is not None else None)
 
     def checkpoint() -> None:
         save_checkpoint(

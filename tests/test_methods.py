@@ -85,3 +85,16 @@ def test_fixed_looker_and_joint_split():
     assert td["looker", "action"].tolist() == [1, 1, 1, 1]
     mover, looker = SplitJoint()(torch.arange(9))
     assert mover.tolist() == [0, 0, 0, 1, 1, 1, 2, 2, 2] and looker.tolist() == [0, 1, 2] * 3
+
+
+def test_curriculum_keeps_its_switch_point_on_resume():
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    small = dict(method="curriculum", channels=(4,), hidden_size=8)
+    first = make_method(TrainConfig(frames=1000, **small), torch.device("cpu"), start=False)
+    first.frames = 400  # past the switch at 300
+    resumed = make_method(TrainConfig(frames=5000, **small), torch.device("cpu"), start=False)
+    assert resumed.switch_at == 1500
+    resumed.load_state_dict(first.state_dict())
+    assert (resumed.frames, resumed.switch_at) == (400, 300) and resumed._phase() == {}

@@ -1,0 +1,213 @@
+"""Training speed of every method against MiniWorld's raw env speed, measured in one run on this machine.
+
+What it measures (on the CPU, the default :class:`~activeperc_rl.config.TrainConfig` but for the method and
+``--num-envs``):
+
+1. For each method of ``--methods``: training frames/s, collection and learning together. The method is built
+   with :func:`~activeperc_rl.methods.make_method`, ``--warmup-iters`` iterations run untimed, then
+   :meth:`Method.iterate` runs until ``--seconds`` have passed; the figure is the sum of ``Iteration.frames``
+   (environment cycles over every room of every environment, E1 and E2 both for ``meta``) divided by the wall
+   time of those iterations. The time spent inside the collectors (``Method._next``, wrapped by this script
+   only; it includes the policy's and the in-loop looker's forward passes and the renders) is reported as
+   "collect", the rest of each iteration (losses, backward passes, optimizer steps, soft updates) as "learn".
+2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, measured by
+   ``benchmarks/env_speed.py``'s own function (in a child process) in this same run.
+3. Each method's frames/s divided by MiniWorld's steps/s, and the goals of the issues: ``meta`` at least 1x
+   MiniWorld's raw env speed on 2 cores (issue 3) and at least 1.5x (issue 4). Both goals are stated for a
+   2-core machine: the header prints how many CPUs this one has.
+
+A training frame is one cycle of a room (the mover's move and, in looker mode, the look, each with its render),
+while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
+environment loop, as the issues state it.
+
+Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
+
+    python benchmarks/train_speed.py                      # 20 s per method
+    python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
+    python benchmarks/train_speed.py --seconds 5 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import gc
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py sits next to this file
+
+import env_speed  # noqa: E402 (needs the path above)
+
+GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
+    ("issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
+    ("issue 4: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
+)
+
+
+def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: int) -> dict:
+    """Train ``name`` on the CPU for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
+
+    The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
+    timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
+    ``curriculum``, ``obstacles`` (the obstacle count of the phase that was timed).
+    """
+    import torch
+
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    changes = {"method": name, "device": "cpu"}
+    if num_envs is not None:
+        changes["num_envs"] = num_envs
+    config = TrainConfig(**changes)
+    torch.manual_seed(config.seed)
+    method = make_method(config, torch.device("cpu"))
+    collect_s = [0.0]
+    next_rollout = method._next  # bound method of the library, wrapped on this instance only
+
+    @functools.wraps(next_rollout)
+    def timed_next(collector):
+        start = time.perf_counter()
+        try:
+            return next_rollout(collector)
+        finally:
+            collect_s[0] += time.perf_counter() - start
+
+    method._next = timed_next
+    try:
+        for _ in range(warmup_iters):
+            method.iterate()
+        frames, iterations, losses = 0, 0, {}
+        collect_s[0] = 0.0
+        start = time.perf_counter()
+        while True:
+            iteration = method.iterate()
+            frames += iteration.frames
+            iterations += 1
+            losses = iteration.losses
+            elapsed = time.perf_counter() - start
+            if elapsed >= seconds:
+                break
+    finally:
+        method.close()
+    result = {
+        "frames_per_s": frames / elapsed,
+        "iterations": iterations,
+        "frames": frames,
+        "frames_per_iteration": frames / iterations,
+        "seconds": elapsed,
+        "collect_s": collect_s[0],
+        "learn_s": elapsed - collect_s[0],
+        "num_envs": config.num_envs,
+        "rollout_length": config.rollout_length,
+    }
+    if "curriculum/obstacles" in losses:
+        result["obstacles"] = int(losses["curriculum/obstacles"])
+    return result
+
+
+def summarise(ours: dict[str, dict], peer: float | None) -> tuple[dict[str, float], dict[str, bool | None]]:
+    """Ratios frames/s over MiniWorld's steps/s per method, and the goals (``None`` when they cannot be judged)."""
+    if not peer:
+        return {}, {goal: None for goal, _ in GOALS}
+    ratios = {name: result["frames_per_s"] / peer for name, result in ours.items()}
+    goals = {goal: (ratios["meta"] >= multiple if "meta" in ratios else None) for goal, multiple in GOALS}
+    return ratios, goals
+
+
+def main() -> None:
+    from activeperc_rl.config import TrainConfig
+
+    """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
+    from activeperc_rl.config import METHODS
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="METHOD", help=f"of {METHODS} (all)"
+    )
+    parser.add_argument("--seconds", type=float, default=20.0, help="timed seconds per method and for MiniWorld (20)")
+    parser.add_argument("--num-envs", type=int, default=None, help="rooms per environment (the TrainConfig default)")
+    parser.add_argument(
+        "--threads", type=int, default=TrainConfig().torch_threads, help="torch.set_num_threads (default: as training)"
+    )
+    parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations before each timing (2)")
+    parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
+    args = parser.parse_args()
+
+    import torch
+
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    machine = env_speed.machine_info()
+    machine |= {"torch": torch.__version__, "torch_threads": torch.get_num_threads()}
+    print("activeperc training speed vs MiniWorld")
+    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
+    print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
+    print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
+    print(f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations, CPU, TrainConfig()")
+    print()
+
+    ours: dict[str, dict] = {}
+    for name in args.methods:
+        result = ours[name] = bench_method(name, args.num_envs, args.seconds, args.warmup_iters)
+        collect = result["collect_s"] / result["seconds"]
+        detail = (
+            f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
+            f" (N={result['num_envs']}, T={result['rollout_length']}),"
+            f" collect {collect:.0%} / learn {1 - collect:.0%}"
+        )
+        if "obstacles" in result:
+            detail += f", phase with {result['obstacles']} obstacles"
+        print(f"train {name:<14}{result['frames_per_s']:9.1f} frames/s   {detail}")
+        gc.collect()
+
+    peer, why = env_speed.bench_miniworld(args.seconds, 1.0, 0)
+    peer_rate = peer["steps_per_s"] if peer else None
+    if peer:
+        label = f"MiniWorld {peer['version']} {env_speed.PEER_ENV}"
+        shape = "x".join(map(str, peer["obs_shape"]))
+        print(f"peer  {label:<34}{peer_rate:9.1f} steps/s    (raw env.step, obs {shape}, GL: {peer['gl_renderer']})")
+    else:
+        print(f"peer  MiniWorld {env_speed.PEER_ENV}: NOT MEASURED, {why}")
+    print()
+
+    if "meta" in ours:
+        meta = ours["meta"]
+        per_it = meta["seconds"] / meta["iterations"]
+        collect = meta["collect_s"] / meta["iterations"]
+        print(
+            f"meta  one iteration: {per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
+            f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
+        )
+    ratios, goals = summarise(ours, peer_rate)
+    if ratios:
+        for name, ratio in ratios.items():
+            print(f"ratio {name:<14}{ratio:6.2f}x MiniWorld raw steps/s")
+    else:
+        print("ratios: unknown, MiniWorld could not be measured")
+    for goal, met in goals.items():
+        verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
+        note = f" (measured on {machine['usable_cpus']} usable CPUs)" if met is not None else ""
+        print(f"goal  {goal}: {verdict}{note}")
+
+    if args.json:
+        report = {
+            "machine": machine,
+            "seconds": args.seconds,
+            "warmup_iters": args.warmup_iters,
+            "methods": ours,
+            "miniworld": peer,
+            "miniworld_error": why,
+            "ratios": ratios,
+            "goals_met": goals,
+        }
+        print(json.dumps(report))
+
+
+if __name__ == "__main__":
+    main()
