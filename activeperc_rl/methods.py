@@ -97,6 +97,20 @@ class Method:
         loss.make_value_estimator(ValueEstimators.GAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
         return loss
 
+    def _actor_critic(self, name: str, agent: str, lr: float, action_agent: str | None = None, num_actions: int = 3):
+        """An actor and a critic on ``agent``'s view sharing one encoder, their A2C loss, and optimizer ``name``.
+
+        The networks are registered as ``{name}_actor`` and ``{name}_critic``; the actor's action lies
+        under ``action_agent`` (default: ``agent``).
+        """
+        encoder = self._encoder()
+        actor = make_actor(encoder, self.config.hidden_size, action_agent or agent, num_actions, reads=agent)
+        critic = make_critic(encoder, self.config.hidden_size, agent)
+        loss = self._a2c(actor, critic, agent, action_agent)
+        self.modules.update({f"{name}_actor": actor, f"{name}_critic": critic})
+        self._optimizer(name, [actor, critic], lr)
+        return actor, critic, loss
+
     def _collector(self, policy, looker=None, seed_offset: int = 0, **env_overrides) -> Collector:
         cfg = self.config
         env_config = dataclasses.asdict(cfg.env) | env_overrides
@@ -182,12 +196,7 @@ class _MoverA2C(Method):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        encoder = self._encoder()
-        self.actor = make_actor(encoder, config.hidden_size, MOVER)
-        self.critic = make_critic(encoder, config.hidden_size, MOVER)
-        self.mover_loss = self._a2c(self.actor, self.critic, MOVER)
-        self.modules.update(mover_actor=self.actor, mover_critic=self.critic)
-        self._optimizer("mover", [self.actor, self.critic], config.lr)
+        self.actor, self.critic, self.mover_loss = self._actor_critic("mover", MOVER, config.lr)
 
     def _update_mover(self, rollout: TensorDictBase) -> dict[str, float]:
         return self._step("mover", self.mover_loss(rollout))
@@ -228,12 +237,7 @@ class IA2C(_MoverA2C):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        encoder = self._encoder()
-        self.looker_actor = make_actor(encoder, config.hidden_size, LOOKER)
-        self.looker_critic = make_critic(encoder, config.hidden_size, LOOKER)
-        self.looker_loss = self._a2c(self.looker_actor, self.looker_critic, LOOKER)
-        self.modules.update(looker_actor=self.looker_actor, looker_critic=self.looker_critic)
-        self._optimizer("looker", [self.looker_actor, self.looker_critic], config.looker_lr)
+        self.looker_actor, self.looker_critic, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
 
     def start(self) -> None:
         """Build the environment, with the looker in the loop."""
@@ -259,13 +263,10 @@ class Joint(Method):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        encoder = self._encoder()
-        self.actor = make_actor(encoder, config.hidden_size, JOINT, num_actions=9, reads=MOVER)
-        self.critic = make_critic(encoder, config.hidden_size, MOVER)
+        self.actor, self.critic, self.loss = self._actor_critic(
+            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=9
+        )
         self.joint_policy = make_joint_policy(self.actor)
-        self.loss = self._a2c(self.actor, self.critic, MOVER, action_agent=JOINT)
-        self.modules.update(joint_actor=self.actor, joint_critic=self.critic)
-        self._optimizer("joint", [self.actor, self.critic], config.lr)
 
     def start(self) -> None:
         """Build the environment."""
