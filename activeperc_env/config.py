@@ -23,17 +23,21 @@ class EnvConfig:
     """Height of the first-person image, in pixels."""
     num_obstacles: int = 3
     """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
+    goal_distance: float = 3.0
+    """Distance along the room (x) between the robot's start and the goal, in metres: each is drawn
+    within 0.3 m of -+goal_distance / 2 and their y anywhere across the room (2.5 to 4.6; the room is 6 m
+    long). 4.6 puts them at its two ends; below 3, five or six occluders take many draws to fit."""
     max_cycles: int = 150
     """Cycles (one move and one look each) before the episode is truncated."""
     pan_range: float = 120.0
     """The camera pans within [-pan_range, +pan_range] degrees of the robot's heading."""
     pan_step: float = 30.0
     """Degrees the camera turns for one 'pan left' or 'pan right' action."""
-    control_hz: float = 10.0
+    control_hz: float = 5.0
     """Mover decisions per simulated second; each move drives the wheels for 1/control_hz s."""
-    forward_speed: float = 1.5
+    forward_speed: float = 0.75
     """Wheel rim speed of the 'forward' action, in m/s."""
-    turn_speed: float = 120.0
+    turn_speed: float = 90.0
     """Yaw rate the wheels are driven at by 'turn left' and 'turn right', in degrees per second."""
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
@@ -45,6 +49,7 @@ class EnvConfig:
             "height": isinstance(self.height, int) and 8 <= self.height <= 1024,
             "num_obstacles": isinstance(self.num_obstacles, int)
             and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
+            "goal_distance": 2.5 <= self.goal_distance <= 4.6,
             "max_cycles": isinstance(self.max_cycles, int) and self.max_cycles >= 1,
             "pan_range": 0.0 <= self.pan_range <= 180.0,
             "pan_step": 0.0 < self.pan_step <= 180.0,
@@ -58,6 +63,7 @@ class EnvConfig:
             "width": "an int in [8, 1024]",
             "height": "an int in [8, 1024]",
             "num_obstacles": f"an int in [0, {len(OCCLUDER_BODIES)}]",
+            "goal_distance": "metres in [2.5, 4.6]",
             "max_cycles": "an int >= 1",
             "pan_range": "degrees in [0, 180]",
             "pan_step": "degrees in (0, 180]",

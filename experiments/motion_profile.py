@@ -1,14 +1,19 @@
-"""How far one action carries the robot, cycle by cycle, from rest.
+"""How far one action carries the robot, cycle by cycle, from rest and amid random moves.
 
-Run ``python experiments/motion_profile.py [--cycles 6] [--seed 0]``: prints the distance driven
-(m) and the heading change (degrees) of each of several consecutive identical moves from rest,
-for every mover action, in the default room with no occluders.
+Run ``python experiments/motion_profile.py [--cycles 6] [--seed 0] [--random-cycles 1280]``: prints
+the distance driven (m) and the heading change (degrees) of each of several consecutive identical
+moves from rest, for every mover action, in the default room with no occluders; then the mean and
+standard deviation of the forward distance and heading change of each action when every move is
+drawn uniformly at random (32 rooms, reset when the robot nears a wall), which shows how much of
+the previous move's momentum a move keeps.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+
+import numpy as np
 
 from activeperc_env import MOVER_ACTIONS, EnvConfig, Simulator
 
@@ -27,16 +32,42 @@ def profile(action: int, cycles: int, seed: int) -> list[tuple[float, float]]:
     return steps
 
 
+def random_moves(cycles: int, seed: int, num_envs: int = 32) -> dict[int, np.ndarray]:
+    """Per action, rows of (forward distance in m, heading change in degrees) under uniformly random moves."""
+    sim = Simulator(EnvConfig(num_obstacles=0, max_cycles=10**6), num_envs=num_envs)
+    rng = np.random.default_rng(seed)
+    sim.reset(seeds=rng.integers(2**31, size=num_envs))
+    rows: dict[int, list] = {a: [] for a in range(len(MOVER_ACTIONS))}
+    for _ in range(cycles // num_envs):
+        actions = rng.integers(len(MOVER_ACTIONS), size=num_envs)
+        before = [sim.pose(i) for i in range(num_envs)]
+        sim.move(actions)
+        for i, (action, (xy, heading, _)) in enumerate(zip(actions, before, strict=True)):
+            new_xy, new_heading, _ = sim.pose(i)
+            forward = (new_xy[0] - xy[0]) * math.cos(heading) + (new_xy[1] - xy[1]) * math.sin(heading)
+            turn = math.atan2(math.sin(new_heading - heading), math.cos(new_heading - heading))
+            rows[int(action)].append((forward, math.degrees(turn)))
+            if abs(new_xy[0]) > 2.5 or abs(new_xy[1]) > 1.5:  # near a wall: start afresh
+                sim.reset([i], seeds=[int(rng.integers(2**31))])
+    return {a: np.array(r) for a, r in rows.items()}
+
+
 def main() -> None:
     """Print one row per action."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cycles", type=int, default=6)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--random-cycles", type=int, default=1280)
     args = parser.parse_args()
     for action, name in enumerate(MOVER_ACTIONS):
         steps = profile(action, args.cycles, args.seed)
         print(f"{name:>10}  metres: " + " ".join(f"{d:.3f}" for d, _ in steps))
         print(f"{'':>10}  degrees: " + " ".join(f"{t:+.1f}" for _, t in steps))
+    print(f"uniformly random moves ({args.random_cycles} cycles), mean +- std:")
+    for action, rows in random_moves(args.random_cycles, args.seed).items():
+        (dist, turn), (dist_sd, turn_sd) = rows.mean(axis=0), rows.std(axis=0)
+        name = MOVER_ACTIONS[action]
+        print(f"{name:>10}  forward {dist:.3f} +- {dist_sd:.3f} m, turn {turn:+.1f} +- {turn_sd:.1f} degrees")
 
 
 if __name__ == "__main__":
