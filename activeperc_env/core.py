@@ -101,7 +101,7 @@ class Simulator:
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles
         for i in ids:
-            layout = sample_layout(self._rngs[i], n_obs)
+            layout = sample_layout(self._rngs[i], n_obs, self.config.goal_distance)
             qpos = self._qpos[i]
             qpos[self._ids.root : self._ids.root + 3] = (*layout.start_xy, names.WHEEL_RADIUS)
             half = layout.heading / 2

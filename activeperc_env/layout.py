@@ -14,9 +14,10 @@ from activeperc_env.names import (
     ROOM_HALF_Y,
 )
 
-START_X = (-ROOM_HALF_X + 0.4, -ROOM_HALF_X + 1.0)
-GOAL_X = (ROOM_HALF_X - 1.0, ROOM_HALF_X - 0.4)
+X_JITTER = 0.3  # start and goal x are drawn within this of -+goal_distance / 2
 SIDE_Y = ROOM_HALF_Y - 0.5
+LINE_OFFSET = 0.45  # the first occluder's centre is within this of the start-goal line
+SIDE_OFFSET = (1.0, 1.6)  # the others' centres are this far to either side of it
 HEADING_SPREAD = np.pi / 2  # the start heading is within +-90 degrees of the goal's bearing
 MAX_TRIES = 1000  # whole-layout draws before giving up
 PLACE_TRIES = 50  # spots tried for one occluder before the draw starts over
@@ -36,35 +37,44 @@ class Layout:
     """(num_obstacles, 2) centres of the occluder boxes."""
 
 
-def sample_layout(rng: np.random.Generator, num_obstacles: int) -> Layout:
+def sample_layout(rng: np.random.Generator, num_obstacles: int, goal_distance: float) -> Layout:
     """Draw a layout: start on the west side, goal on the east side, occluders on the way.
 
+    The start's x is drawn within ``X_JITTER`` of ``-goal_distance / 2`` and the goal's within
+    ``X_JITTER`` of ``+goal_distance / 2``; both y anywhere but 0.5 m from the side walls.
+
     Occluders stand 35-65 % of the way from start to goal (25-75 % for a fourth to sixth), the
-    first within 0.45 m of the line between them, so the goal is hidden from most starts, the
-    others within 1 m of it. A draw whose occluders do not fit is redrawn whole from the same
+    first within ``LINE_OFFSET`` of the line between them, so the goal is hidden from most starts,
+    the others ``SIDE_OFFSET`` to either side of it, so they hide the goal from views to the side
+    and leave a way round the first. A draw whose occluders do not fit is redrawn whole from the same
     stream, so a seed fixes the layout.
     """
     for _ in range(MAX_TRIES):
-        layout = _draw(rng, num_obstacles)
+        layout = _draw(rng, num_obstacles, goal_distance)
         if layout is not None:
             return layout
     raise RuntimeError(f"no layout with {num_obstacles} occluders fitted in {MAX_TRIES} draws")
 
 
-def _draw(rng: np.random.Generator, num_obstacles: int) -> Layout | None:
+def _draw(rng: np.random.Generator, num_obstacles: int, goal_distance: float) -> Layout | None:
     """One attempt at a layout; ``None`` when an occluder finds no free spot."""
-    start = np.array([rng.uniform(*START_X), rng.uniform(-SIDE_Y, SIDE_Y)])
-    goal = np.array([rng.uniform(*GOAL_X), rng.uniform(-SIDE_Y, SIDE_Y)])
+    half = goal_distance / 2
+    start = np.array([rng.uniform(-half - X_JITTER, -half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
+    goal = np.array([rng.uniform(half - X_JITTER, half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
     line = goal - start
     bearing = float(np.arctan2(line[1], line[0]))
     heading = bearing + rng.uniform(-HEADING_SPREAD, HEADING_SPREAD)
     normal = np.array([-line[1], line[0]]) / np.linalg.norm(line)
     occluders: list[np.ndarray] = []
     for i in range(num_obstacles):
-        spread = 0.45 if i == 0 else 1.0
         along = (0.35, 0.65) if i < 3 else (0.25, 0.75)  # a fourth to sixth box needs more room
         for _ in range(PLACE_TRIES):
-            xy = start + rng.uniform(*along) * line + rng.uniform(-spread, spread) * normal
+            fraction = rng.uniform(*along)
+            if i == 0:
+                offset = rng.uniform(-LINE_OFFSET, LINE_OFFSET)
+            else:
+                offset = rng.choice((-1.0, 1.0)) * rng.uniform(*SIDE_OFFSET)
+            xy = start + fraction * line + offset * normal
             if _fits(xy, start, goal, occluders):
                 occluders.append(xy)
                 break

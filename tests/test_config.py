@@ -15,6 +15,8 @@ from activeperc_env.config import EnvConfig
         ("height", 60.5),
         ("num_obstacles", -1),
         ("num_obstacles", 7),
+        ("goal_distance", 2.0),
+        ("goal_distance", 5.0),
         ("max_cycles", 0),
         ("pan_range", 190),
         ("pan_step", 0),

@@ -2,11 +2,12 @@
 
 import mujoco
 import numpy as np
+import pytest
 
 from activeperc_env import names
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import load_model
-from activeperc_env.layout import sample_layout
+from activeperc_env.layout import LINE_OFFSET, SIDE_OFFSET, X_JITTER, sample_layout
 
 
 def test_every_named_element_exists():
@@ -37,7 +38,7 @@ def test_ten_seconds_of_random_control_without_warnings_or_nan():
     model = load_model(EnvConfig())
     data = mujoco.MjData(model)
     rng = np.random.default_rng(0)
-    layout = sample_layout(rng, 3)
+    layout = sample_layout(rng, 3, EnvConfig().goal_distance)
     data.qpos[:2] = layout.start_xy
     for k, xy in enumerate(layout.occluders_xy):
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.OCCLUDER_BODIES[k])
@@ -51,3 +52,22 @@ def test_ten_seconds_of_random_control_without_warnings_or_nan():
     assert [w.number for w in data.warning] == [0] * len(data.warning)
     assert np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
     assert abs(data.qpos[2] - names.WHEEL_RADIUS) < 0.02, "the robot left the floor"
+
+
+@pytest.mark.parametrize("goal_distance", [2.5, 3.0, 4.6])
+def test_layouts_follow_the_documented_placement(goal_distance):
+    rng = np.random.default_rng(0)
+    for num_obstacles in range(len(names.OCCLUDER_BODIES) + 1):
+        for _ in range(5):
+            layout = sample_layout(rng, num_obstacles, goal_distance)
+            half = goal_distance / 2
+            assert abs(layout.start_xy[0] + half) <= X_JITTER and abs(layout.goal_xy[0] - half) <= X_JITTER
+            line = layout.goal_xy - layout.start_xy
+            normal = np.array([-line[1], line[0]]) / np.linalg.norm(line)
+            offsets = np.abs((layout.occluders_xy - layout.start_xy) @ normal)
+            assert layout.occluders_xy.shape == (num_obstacles, 2)
+            if num_obstacles:
+                assert offsets[0] <= LINE_OFFSET + 1e-9, "the first occluder stands on the start-goal line"
+                assert np.all((offsets[1:] >= SIDE_OFFSET[0] - 1e-9) & (offsets[1:] <= SIDE_OFFSET[1] + 1e-9))
+            inside = np.abs(layout.occluders_xy) < [names.ROOM_HALF_X, names.ROOM_HALF_Y]
+            assert inside.all()
