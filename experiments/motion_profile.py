@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from activeperc_env import MOVER_ACTIONS, EnvConfig, Simulator
+from activeperc_env import MOVER_ACTIONS, EnvConfig, Simulator, names
 
 
 def profile(action: int, cycles: int, seed: int) -> list[tuple[float, float]]:
@@ -47,7 +47,7 @@ def random_moves(cycles: int, seed: int, num_envs: int = 32) -> dict[int, np.nda
             forward = (new_xy[0] - xy[0]) * math.cos(heading) + (new_xy[1] - xy[1]) * math.sin(heading)
             turn = math.atan2(math.sin(new_heading - heading), math.cos(new_heading - heading))
             rows[int(action)].append((forward, math.degrees(turn)))
-            if abs(new_xy[0]) > 2.5 or abs(new_xy[1]) > 1.5:  # near a wall: start afresh
+            if abs(new_xy[0]) > names.ROOM_HALF_X - 0.5 or abs(new_xy[1]) > names.ROOM_HALF_Y - 0.5:  # near a wall
                 sim.reset([i], seeds=[int(rng.integers(2**31))])
     return {a: np.array(r) for a, r in rows.items()}
 
