@@ -21,6 +21,7 @@ from activeperc_env import EnvConfig
 
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
+MOVER_ROLLOUTS = ("d1", "all")
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,11 @@ class TrainConfig:
     looker_lr: float = 3e-4
     """Adam learning rate of the looker (phi2 for 'meta', the looker's actor-critic for 'ia2c')."""
     entropy_coeff: float = 0.01
-    """Weight of the entropy bonus in every policy loss."""
+    """Weight of the entropy bonus in the mover's (and the joint agent's) A2C loss."""
+    looker_entropy_coeff: float = 0.01
+    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C). Until the
+    critic tells rooms apart it is the looker's only steady gradient, and Adam makes full-size steps of it:
+    at 0.01 phi2 drifts to uniform looks within about 50k frames; at 0 it may collapse onto one look."""
     critic_coeff: float = 0.5
     """Weight of the critic's loss in the A2C loss."""
     max_grad_norm: float = 0.5
@@ -67,6 +72,16 @@ class TrainConfig:
     resample_d1: bool = True
     """'meta': sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per
     iteration); False reuses the first D1 (2 rollouts per iteration)."""
+    looker_hold_prob: float = 0.95
+    """Probability that an untrained looker holds the camera (phi1 and phi2, the IA2C looker, the joint agent's
+    look): its output layer starts at zero weights and a bias on 'hold', so E2's greedy look starts by holding
+    instead of the one look a random init prefers in nearly every view (experiments/untrained_looker.py).
+    1/3 makes every look equally likely (argmax then picks 'pan left'); the paper does not say."""
+    mover_rollouts: str = "d1"
+    """'meta': the rollouts the mover learns from. 'd1' (the paper): one A2C step on the D1 sampled after the soft
+    update. 'all': first an A2C step on the first D1 and D2 together (after the meta step, which reads w1 as the
+    paper does), then that step on the new D1; every step is on-policy, and the mover gets 2x the steps and 3x
+    the data per iteration."""
     curriculum_fraction: float = 0.3
     """'curriculum': fraction of the frames spent pre-training the joint agent in a room without obstacles."""
     channels: tuple[int, ...] = (16, 32)
@@ -101,10 +116,13 @@ class TrainConfig:
             "lr": (self.lr > 0, "a number > 0"),
             "looker_lr": (self.looker_lr > 0, "a number > 0"),
             "entropy_coeff": (self.entropy_coeff >= 0, "a number >= 0"),
+            "looker_entropy_coeff": (self.looker_entropy_coeff >= 0, "a number >= 0"),
             "critic_coeff": (self.critic_coeff > 0, "a number > 0"),
             "max_grad_norm": (self.max_grad_norm > 0, "a number > 0"),
             "epsilon": (0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
             "alpha": (0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
+            "looker_hold_prob": (0.0 < self.looker_hold_prob < 1.0, "a probability in (0, 1)"),
+            "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "curriculum_fraction": (0.0 < self.curriculum_fraction < 1.0, "a number in (0, 1)"),
             "channels": (
                 len(self.channels) >= 1 and all(_is_int(c) and c >= 1 for c in self.channels),

@@ -40,6 +40,7 @@ from activeperc_rl.models import (
     make_critic,
     make_encoder,
     make_joint_policy,
+    start_holding,
 )
 
 
@@ -83,7 +84,7 @@ class Method:
         loss = A2CLoss(
             actor,
             critic,
-            entropy_coeff=cfg.entropy_coeff,
+            entropy_coeff=cfg.looker_entropy_coeff if owner == LOOKER else cfg.entropy_coeff,
             critic_coeff=cfg.critic_coeff,
             loss_critic_type="l2",
             functional=False,
@@ -238,6 +239,7 @@ class IA2C(_MoverA2C):
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.looker_actor, self.looker_critic, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
+        start_holding(self.looker_actor, config.looker_hold_prob)
 
     def start(self) -> None:
         """Build the environment, with the looker in the loop."""
@@ -266,6 +268,7 @@ class Joint(Method):
         self.actor, self.critic, self.loss = self._actor_critic(
             "joint", MOVER, config.lr, action_agent=JOINT, num_actions=9
         )
+        start_holding(self.actor, config.looker_hold_prob)
         self.joint_policy = make_joint_policy(self.actor)
 
     def start(self) -> None:
@@ -327,18 +330,20 @@ class Meta(_MoverA2C):
     2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);
     3. REINFORCE step on phi2 with V(tau_k) in place of the return;
     4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
-    5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it;
+    5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it
+       (``mover_rollouts='all'``: first one on the first D1 and D2 together);
     6. copy w1 -> w2.
     """
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER)
+        start_holding(self.phi2, config.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)
         self.w2 = copy.deepcopy(self.critic)
         self.w2.requires_grad_(False)
-        self.meta_loss = MetaEvaluationLoss(self.phi2, self.w2, self.critic, entropy_coeff=config.entropy_coeff)
+        self.meta_loss = MetaEvaluationLoss(self.phi2, self.w2, self.critic, entropy_coeff=config.looker_entropy_coeff)
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
         self._optimizer("looker", [self.phi2], config.looker_lr)
 
@@ -356,11 +361,15 @@ class Meta(_MoverA2C):
         frames, returns = d1.numel() + d2.numel(), finished_returns(d1)
         losses = self._step("looker", self.meta_loss(d2, d1))
         soft_update(self.phi1, self.phi2, self.config.alpha)
+        if self.config.mover_rollouts == "all":
+            both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
+            losses |= self._update_mover(both)
         if self.config.resample_d1:
             d1 = self._next(self.e1)
             frames += d1.numel()
             returns += finished_returns(d1)
-        losses |= self._update_mover(d1)
+        if self.config.resample_d1 or self.config.mover_rollouts == "d1":
+            losses |= self._update_mover(d1)
         self.w2.load_state_dict(self.critic.state_dict())
         losses["meta/e2_success_rate"] = _success_rate(finished_returns(d2))
         return Iteration(frames, returns, losses)

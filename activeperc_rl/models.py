@@ -9,6 +9,8 @@ share one encoder (as in the usual pixel A2C); the looker's networks have their 
 
 from __future__ import annotations
 
+import math
+
 import torch
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
@@ -18,6 +20,7 @@ from activeperc_env import EnvConfig
 
 JOINT = "joint"
 NUM_ACTIONS = 3
+HOLD = 1  # the look that keeps the camera where it is
 
 
 class Encoder(nn.Module):
@@ -93,6 +96,20 @@ def make_actor(
     )
 
 
+def start_holding(actor, hold_prob: float) -> None:
+    """Set ``actor``'s output layer so that, untrained, it picks a look of 'hold' with probability ``hold_prob``.
+
+    The layer's weights become zero and its bias ``log(2 p / (1 - p))`` on the actions whose look is 'hold'
+    (action 1 of a looker; actions 1, 4, 7 of the joint agent, ``a = 3 u_m + u_c``), 0 elsewhere: every
+    view gets the same start, the moves stay uniform, and ``argmax`` holds. ``hold_prob = 1/3`` is uniform.
+    """
+    out = actor[0].module.out
+    holds = torch.arange(out.out_features) % NUM_ACTIONS == HOLD
+    with torch.no_grad():
+        out.weight.zero_()
+        out.bias.copy_(holds * math.log(2 * hold_prob / (1 - hold_prob)))
+
+
 def make_critic(encoder: Encoder, hidden_size: int, agent: str) -> TensorDictModule:
     """A state-value network on ``agent``'s observation, writing ``"state_value"``."""
     return TensorDictModule(Head(encoder, hidden_size, 1), in_keys=observation_keys(agent), out_keys=["state_value"])
@@ -138,7 +155,7 @@ class EpsilonGreedyLooker(nn.Module):
 class FixedLooker(nn.Module):
     """Writes the same look for every room (``1``, 'hold', keeps the camera forward)."""
 
-    def __init__(self, action: int = 1):
+    def __init__(self, action: int = HOLD):
         super().__init__()
         self.action = action
 

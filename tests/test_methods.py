@@ -7,7 +7,14 @@ from torch import nn
 
 from activeperc_env import EnvConfig
 from activeperc_rl.methods import finished_returns, looker_transitions, soft_update
-from activeperc_rl.models import EpsilonGreedyLooker, FixedLooker, SplitJoint, make_actor, make_encoder
+from activeperc_rl.models import (
+    EpsilonGreedyLooker,
+    FixedLooker,
+    SplitJoint,
+    make_actor,
+    make_encoder,
+    start_holding,
+)
 
 
 def test_soft_update_is_eq_3():
@@ -80,6 +87,25 @@ def test_epsilon_greedy_looker():
     assert 0.7 < agree < 0.9, agree
 
 
+@pytest.mark.parametrize(("num_actions", "hold_prob"), [(3, 0.95), (9, 0.9), (3, 1 / 3)])
+def test_start_holding_sets_the_untrained_look(num_actions, hold_prob):
+    torch.manual_seed(0)
+    actor = make_actor(make_encoder(EnvConfig(), (4,), 8), 8, "looker", num_actions=num_actions)
+    start_holding(actor, hold_prob)
+    td = observation(50)
+    td["looker", "observation", "pan"] = torch.rand(50, 1) * 4 - 2
+    probs = torch.softmax(actor[0](td)["looker", "logits"], -1)
+    look = torch.arange(num_actions) % 3
+    # every view gets the same start: the looks' marginal is (q, p, q); the moves under each look are uniform
+    assert torch.allclose(probs[:, look == 1].sum(-1), torch.full((50,), hold_prob))
+    assert torch.allclose(probs[:, look == 0].sum(-1), torch.full((50,), (1 - hold_prob) / 2))
+    assert torch.allclose(probs, probs[:1].expand_as(probs))
+    if hold_prob > 1 / 3:
+        assert (probs.argmax(-1) % 3 == 1).all()
+    actor[0](td)["looker", "logits"].sum().backward()
+    assert actor[0].module.out.weight.grad.abs().sum() > 0  # it still learns
+
+
 def test_fixed_looker_and_joint_split():
     td = FixedLooker()(observation(4))
     assert td["looker", "action"].tolist() == [1, 1, 1, 1]
@@ -98,3 +124,39 @@ def test_curriculum_keeps_its_switch_point_on_resume():
     assert resumed.switch_at == 1500
     resumed.load_state_dict(first.state_dict())
     assert (resumed.frames, resumed.switch_at) == (400, 300) and resumed._phase() == {}
+
+
+@pytest.mark.parametrize(
+    ("mover_rollouts", "resample_d1", "expected"),
+    [("d1", True, [2]), ("all", True, [4, 2]), ("all", False, [4])],
+)
+def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected):
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    config = TrainConfig(
+        num_envs=2, rollout_length=4, channels=(4,), hidden_size=8,
+        mover_rollouts=mover_rollouts, resample_d1=resample_d1,
+    )  # fmt: skip
+    method = make_method(config, torch.device("cpu"))
+    rooms, update = [], method._update_mover
+    method._update_mover = lambda rollout: rooms.append(rollout.shape[0]) or update(rollout)
+    try:
+        iteration = method.iterate()
+    finally:
+        method.close()
+    assert rooms == expected
+    assert iteration.frames == (3 if resample_d1 else 2) * 2 * 4
+
+
+def test_looker_and_mover_entropy_weights_are_separate():
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    small = dict(channels=(4,), hidden_size=8, entropy_coeff=0.02, looker_entropy_coeff=0.005)
+    ia2c = make_method(TrainConfig(method="ia2c", **small), torch.device("cpu"), start=False)
+    meta = make_method(TrainConfig(method="meta", **small), torch.device("cpu"), start=False)
+    assert float(ia2c.mover_loss.entropy_coeff) == pytest.approx(0.02)
+    assert float(ia2c.looker_loss.entropy_coeff) == pytest.approx(0.005)
+    assert float(meta.mover_loss.entropy_coeff) == pytest.approx(0.02)
+    assert float(meta.meta_loss.entropy_coeff) == pytest.approx(0.005)

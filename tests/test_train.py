@@ -96,6 +96,14 @@ def test_bad_flags_are_named(tmp_path, capsys):
     assert "epsilon" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("field", "value"), [("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0)]
+)
+def test_invalid_training_value_names_the_field(field, value):
+    with pytest.raises(ValueError, match=f"TrainConfig.{field}={value!r}"):
+        TrainConfig(**{field: value})
+
+
 def test_preset_then_flags(tmp_path):
     preset = tmp_path / "p.yaml"
     preset.write_text(yaml.safe_dump({"method": "joint", "epsilon": 0.1, "env": {"fov": 100, "max_cycles": 30}}))
