@@ -1,0 +1,396 @@
+"""Throughput of the batched TorchRL env against its number of rooms, and its memory over many episodes.
+
+What it measures (random actions throughout, each rate timed for ``--seconds`` after ``--warmup`` untimed
+seconds):
+
+1. For each N of ``--num-envs``: ``activeperc_rl.make_env(num_envs=N, looker=RandomPolicy(("looker",)))``
+   stepped as training steps it, ``env.step_and_maybe_reset`` with the mover's action from
+   ``RandomPolicy(("mover",))``, so finished rooms are restarted by TorchRL's auto-reset. The figure is
+   cycles/s summed over the N rooms; one cycle is the mover's move, the render of ``s_bar``, the looker's
+   look and the render of ``s'`` (two renders, as in training's looker mode).
+2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
+   each), measured by ``benchmarks/env_speed.py``'s own function, in a child process, in this same run
+   (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld
+   at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has).
+3. With ``--memory-episodes E`` (the issue asks for 10,000), first, before any larger env has raised the
+   RSS: ``make_env(num_envs=--memory-rooms)`` stepped the same way until E episodes have ended over all its
+   rooms, sampling the resident memory (RSS) of this process after the warm-up and then about every E/100
+   episodes. It prints the RSS at the start, at the end and its maximum, the growth, and "flat" when the
+   maximum stays within 5 % of the start.
+4. When N = 64 is among them: where the bare ``Simulator(num_envs=64)``'s cycle spends its time (physics,
+   renders, look, resets, ms per cycle) and how much more a cycle of the TorchRL env at N = 64 takes.
+
+It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio; the last two
+empty when MiniWorld was not measured), a plot of cycles/s against N with MiniWorld's steps/s and 5x that
+(``--plot``) and, in memory mode, a CSV of the RSS samples (``--memory-csv``: episodes, rss_mib).
+
+Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
+
+    python benchmarks/env_scaling.py                                   # 5 s per N, no memory run
+    python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --json
+    python benchmarks/env_scaling.py --num-envs 64 --memory-episodes 10000
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import gc
+import json
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py sits next to this file
+
+import env_speed  # noqa: E402 (needs the path above)
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_NUM_ENVS = (1, 4, 16, 64, 256, 1024)
+GOAL_NUM_ENVS = 64  # the goal is judged at this number of rooms
+GOAL_MULTIPLE = 5.0  # ... which must reach this multiple of MiniWorld's raw steps/s
+FLAT_TOLERANCE = 0.05  # memory is "flat" when its maximum stays within this fraction of the start RSS
+MEMORY_SAMPLES = 100  # about this many RSS samples over a memory run
+CSV_COLUMNS = ("num_envs", "cycles_per_s", "miniworld_steps_per_s", "ratio")
+
+
+class RandomRooms:
+    """A looker-mode ``make_env(num_envs)`` stepped with random actions the way training's collectors step it."""
+
+    def __init__(self, num_envs: int, seed: int):
+        import torch
+
+        from activeperc_rl import make_env
+        from activeperc_rl.models import RandomPolicy
+
+        torch.manual_seed(seed)
+        self.env = make_env(num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed)
+        self.mover = RandomPolicy(("mover",))
+        self.state = self.env.reset()
+
+    def cycle(self) -> int:
+        """Run one cycle in every room, restarting the finished ones; return how many episodes ended."""
+        stepped, self.state = self.env.step_and_maybe_reset(self.mover(self.state))
+        return int(stepped.get(("next", "done")).sum())
+
+    def close(self) -> None:
+        """Release the env's simulator."""
+        self.env.close()
+
+
+def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callable[[str], int | float]:
+    """An argparse ``type``: converts to ``kind`` and refuses values below ``low`` (or equal, if ``strict``)."""
+
+    def convert(text: str) -> int | float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be {kind.__name__}, got {text!r}") from None
+        if value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(f"{name} must be {'>' if strict else '>='} {low:g}, got {text}")
+        return value
+
+    return convert
+
+
+def rss_mib() -> float:
+    """The resident memory of this process in MiB, read from ``/proc/self/statm`` (Linux)."""
+    with open("/proc/self/statm") as statm:
+        resident_pages = int(statm.read().split()[1])
+    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def bench_rooms(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
+    """Cycles/s of :class:`RandomRooms` with ``num_envs`` rooms, summed over the rooms."""
+    rooms = RandomRooms(num_envs, seed)
+
+    def step() -> int:
+        rooms.cycle()
+        return num_envs
+
+    try:
+        return env_speed.timed_rate(step, seconds, warmup)
+    finally:
+        rooms.close()
+
+
+def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[str, float]:
+    """Where a cycle of the bare ``Simulator(num_envs)`` spends its time: seconds per cycle of each part.
+
+    Parts: ``physics`` (``move``: the wheels driven for one control period), ``render`` (both views, and the
+    views of restarted rooms), ``look`` (the pan joint set), ``reset`` (new layouts of finished rooms); and
+    ``cycles_per_s``, summed over the rooms, for comparison with the TorchRL env at the same N.
+    """
+    import numpy as np
+
+    import activeperc_env
+
+    sim = activeperc_env.Simulator(num_envs=num_envs)
+    sim.reset(seeds=seed + np.arange(num_envs))
+    sim.render()
+    rng = np.random.default_rng(seed)
+    spent = dict.fromkeys(("physics", "render", "look", "reset"), 0.0)
+
+    def timed(part: str, call: Callable[[], object]) -> None:
+        start = time.perf_counter()
+        call()
+        spent[part] += time.perf_counter() - start
+
+    def cycle() -> int:
+        timed("physics", lambda: sim.move(rng.integers(0, 3, num_envs)))
+        timed("render", sim.render)
+        timed("look", lambda: sim.look(rng.integers(0, 3, num_envs)))
+        timed("render", sim.render)
+        done = np.flatnonzero(sim.done)
+        if done.size:
+            timed("reset", lambda: sim.reset(done))
+            timed("render", lambda: sim.render(done))
+        return 1
+
+    try:
+        env_speed.timed_rate(cycle, warmup, 0.0)  # the warm-up, not counted
+        spent = dict.fromkeys(spent, 0.0)
+        rate = env_speed.timed_rate(cycle, seconds, 0.0)
+    finally:
+        sim.close()
+    cycles = rate * seconds
+    return {part: total / cycles for part, total in spent.items()} | {"cycles_per_s": rate * num_envs}
+
+
+def measure_memory(episodes: int, num_envs: int, warmup: float, seed: int) -> dict:
+    """Step :class:`RandomRooms` for ``warmup`` seconds, then until ``episodes`` episodes ended; sample the RSS.
+
+    Returns ``samples`` (``(episodes ended, RSS MiB)`` pairs, the first after the warm-up, the last at the end),
+    ``start_mib``, ``end_mib``, ``max_mib``, ``growth_mib`` (end - start), ``max_growth_mib`` (max - start),
+    ``flat`` (``max_growth_mib`` below ``tolerance``, :data:`FLAT_TOLERANCE`, of the start), ``episodes`` (ended,
+    at least the number asked for), ``num_envs`` and ``cycles`` (after the warm-up).
+    """
+    rooms = RandomRooms(num_envs, seed)
+    try:
+        deadline = time.perf_counter() + warmup
+        while time.perf_counter() < deadline:  # the warm-up: its episodes are not counted
+            rooms.cycle()
+        gc.collect()
+        samples = [(0, rss_mib())]
+        every = max(1, episodes // MEMORY_SAMPLES)
+        ended, cycles = 0, 0
+        while ended < episodes:
+            ended += rooms.cycle()
+            cycles += 1
+            if ended >= samples[-1][0] + every or ended >= episodes:
+                samples.append((ended, rss_mib()))
+    finally:
+        rooms.close()
+    start, end = samples[0][1], samples[-1][1]
+    peak = max(rss for _, rss in samples)
+    return {
+        "episodes": ended,
+        "num_envs": num_envs,
+        "cycles": cycles,
+        "start_mib": start,
+        "end_mib": end,
+        "max_mib": peak,
+        "growth_mib": end - start,
+        "max_growth_mib": peak - start,
+        "tolerance": FLAT_TOLERANCE,
+        "flat": peak - start < FLAT_TOLERANCE * start,
+        "samples": samples,
+    }
+
+
+def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
+    """Create ``path``'s folder, let ``write`` fill a temporary file beside ``path``, then rename it to ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(handle)
+    try:
+        write(Path(temporary))
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
+
+
+def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
+    """Write ``rows`` under ``header`` to the CSV file ``path`` (atomically; ``None`` cells are left empty)."""
+
+    def write(temporary: Path) -> None:
+        with open(temporary, "w", newline="") as out:
+            writer = csv.writer(out)
+            writer.writerow(header)
+            writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
+
+    write_atomic(path, write)
+
+
+def plot_scaling(path: Path, rates: dict[int, float], peer: float | None, cpus: int) -> None:
+    """Plot cycles/s against the number of rooms (log x) with MiniWorld's steps/s and 5x that, to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    sizes = sorted(rates)
+    ax.plot(sizes, [rates[n] for n in sizes], "o-", label="ours: make_env(num_envs=N), looker mode")
+    if peer:
+        ax.axhline(peer, color="tab:red", linestyle="--", label=f"MiniWorld {env_speed.PEER_ENV} raw steps/s")
+        ax.axhline(GOAL_MULTIPLE * peer, color="tab:green", linestyle=":", label=f"{GOAL_MULTIPLE:g}x MiniWorld")
+    ax.set_xscale("log", base=2)
+    ax.set_xticks(sizes, [str(n) for n in sizes])
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("rooms N (num_envs)")
+    ax.set_ylabel("cycles/s, summed over rooms")
+    ax.set_title(f"Batched env throughput vs rooms ({cpus} CPU{'s' if cpus != 1 else ''})")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    write_atomic(path, lambda temporary: fig.savefig(temporary, format=path.suffix[1:] or "png", dpi=120))
+    plt.close(fig)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command-line flags, every value checked."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--num-envs",
+        nargs="+",
+        type=at_least(int, "num_envs", 1),
+        default=list(DEFAULT_NUM_ENVS),
+        metavar="N",
+        help=f"numbers of rooms to time ({' '.join(map(str, DEFAULT_NUM_ENVS))})",
+    )
+    parser.add_argument(
+        "--seconds", type=at_least(float, "seconds", 0, strict=True), default=5.0, help="timed seconds per N (5)"
+    )
+    parser.add_argument(
+        "--warmup", type=at_least(float, "warmup", 0), default=1.0, help="untimed seconds before each timing (1)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the layouts and the random actions (0)")
+    parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
+    parser.add_argument(
+        "--memory-episodes",
+        type=at_least(int, "memory_episodes", 0),
+        default=0,
+        metavar="E",
+        help="memory mode: run until E episodes ended and sample the RSS (0: off; the issue asks for 10000)",
+    )
+    parser.add_argument(
+        "--memory-rooms", type=at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
+    )
+    parser.add_argument(
+        "--csv", type=Path, default=ROOT / "benchmarks/results/env_scaling.csv", help="rates CSV to write"
+    )
+    parser.add_argument("--plot", type=Path, default=ROOT / "docs/figures/env_scaling.png", help="plot to write")
+    parser.add_argument(
+        "--memory-csv", type=Path, default=ROOT / "benchmarks/results/env_memory.csv", help="RSS samples CSV to write"
+    )
+    parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Parse the flags, time every N, measure MiniWorld and the memory, print the report; return the JSON report."""
+    args = parse_args(argv)
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+
+    machine = env_speed.machine_info()
+    print("activeperc batched env throughput vs rooms")
+    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
+    print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
+    print(f"timing:  {args.seconds:g} s per N after {args.warmup:g} s warm-up, seed {args.seed}, random actions")
+    print()
+
+    # the memory run comes first, so that no larger env has raised the RSS it starts from
+    memory = None
+    if args.memory_episodes:
+        memory = measure_memory(args.memory_episodes, args.memory_rooms, args.warmup, args.seed)
+        write_csv(args.memory_csv, ("episodes", "rss_mib"), memory["samples"])
+        print(
+            f"memory make_env(num_envs={memory['num_envs']}), {memory['episodes']} episodes in {memory['cycles']}"
+            f" cycles: RSS start {memory['start_mib']:.1f} MiB (after warm-up), end {memory['end_mib']:.1f} MiB,"
+            f" max {memory['max_mib']:.1f} MiB"
+        )
+        state = "flat" if memory["flat"] else "NOT flat"
+        print(
+            f"memory growth {memory['growth_mib']:+.1f} MiB at the end, {memory['max_growth_mib']:+.1f} MiB at the max:"
+            f" {state} (tolerance {FLAT_TOLERANCE:.0%} of the start RSS)"
+        )
+        print(f"wrote {args.memory_csv}")
+        print()
+        gc.collect()
+
+    rates: dict[int, float] = {}
+    for n in dict.fromkeys(args.num_envs):  # in the order given, each N once
+        rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed)
+        print(f"ours  make_env(num_envs={n:<5}) {rates[n]:10.1f} cycles/s   ({rates[n] / n:7.1f} per room)")
+        gc.collect()
+
+    if args.no_peer:
+        peer, why = None, "skipped (--no-peer)"
+    else:
+        peer, why = env_speed.bench_miniworld(args.seconds, args.warmup, args.seed)
+    peer_rate = peer["steps_per_s"] if peer else None
+    if peer:
+        label = f"MiniWorld {peer['version']} {env_speed.PEER_ENV}"
+        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (raw env.step, GL: {peer['gl_renderer']})")
+    else:
+        print(f"peer  MiniWorld {env_speed.PEER_ENV}: NOT MEASURED, {why}")
+    print()
+
+    ratios = {n: rate / peer_rate for n, rate in rates.items()} if peer_rate else {}
+    for n, ratio in ratios.items():
+        print(f"ratio N={n:<5} {ratio:7.2f}x MiniWorld raw steps/s")
+    goal = f"N={GOAL_NUM_ENVS} >= {GOAL_MULTIPLE:g}x MiniWorld raw env speed on 2 cores"
+    met = ratios[GOAL_NUM_ENVS] >= GOAL_MULTIPLE if GOAL_NUM_ENVS in ratios else None
+    verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
+    if met is None:
+        verdict += " (MiniWorld not measured)" if not peer_rate else f" (N={GOAL_NUM_ENVS} not timed)"
+    else:
+        verdict += f" (measured on {machine['usable_cpus']} usable CPUs)"
+    print(f"goal  {goal}: {verdict}")
+
+    split = None
+    if GOAL_NUM_ENVS in rates:
+        split = core_split(GOAL_NUM_ENVS, args.seconds, args.warmup, args.seed)
+        per_cycle = sum(v for k, v in split.items() if k != "cycles_per_s")
+        wrapper = GOAL_NUM_ENVS / rates[GOAL_NUM_ENVS] - per_cycle
+        parts = ", ".join(f"{k} {1e3 * v:.1f} ms" for k, v in split.items() if k != "cycles_per_s")
+        print()
+        alone = f"split Simulator(num_envs={GOAL_NUM_ENVS}) alone: {split['cycles_per_s']:.1f} cycles/s"
+        print(f"{alone}; per cycle: {parts}")
+        print(f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator: {1e3 * wrapper:+.1f} ms per cycle")
+        split["torchrl_overhead"] = wrapper
+
+    rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]
+    write_csv(args.csv, CSV_COLUMNS, rows)
+    plot_scaling(args.plot, rates, peer_rate, machine["usable_cpus"])
+    print(f"wrote {args.csv} and {args.plot}")
+
+    report = {
+        "machine": machine,
+        "seconds": args.seconds,
+        "warmup": args.warmup,
+        "seed": args.seed,
+        "cycles_per_s": rates,
+        "miniworld": peer,
+        "miniworld_error": why,
+        "ratios": ratios,
+        "goal": goal,
+        "goal_met": met,
+        "core_split_s_per_cycle": split,
+        "memory": memory,
+        "csv": str(args.csv),
+        "plot": str(args.plot),
+        "memory_csv": str(args.memory_csv) if memory else None,
+    }
+    if args.json:
+        print(json.dumps(report))
+    return report
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,65 @@
+"""benchmarks/env_scaling.py at its tiniest size: the rates CSV, the plot and the memory samples."""
+
+import csv
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "env_scaling.py"
+
+
+@pytest.fixture(scope="module")
+def env_scaling():
+    """The benchmark script as a module (benchmarks/ is not a package)."""
+    spec = importlib.util.spec_from_file_location("env_scaling", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_env_scaling_writes_csv_plot_and_memory(env_scaling, tmp_path):
+    rates, plot, memory = tmp_path / "out" / "scaling.csv", tmp_path / "scaling.png", tmp_path / "memory.csv"
+    argv = ["--num-envs", "1", "2", "--seconds", "0.2", "--warmup", "0.05", "--no-peer"]
+    argv += ["--memory-episodes", "5", "--memory-rooms", "5", "--csv", str(rates), "--plot", str(plot)]
+    report = env_scaling.main([*argv, "--memory-csv", str(memory)])
+
+    rows = read_csv(rates)
+    assert list(rows[0]) == ["num_envs", "cycles_per_s", "miniworld_steps_per_s", "ratio"]
+    assert [row["num_envs"] for row in rows] == ["1", "2"]
+    assert all(float(row["cycles_per_s"]) > 0 for row in rows)
+    assert all(row["miniworld_steps_per_s"] == row["ratio"] == "" for row in rows)  # --no-peer
+    assert plot.stat().st_size > 0
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["memory.csv", "out", "scaling.csv", "scaling.png"]
+
+    samples = read_csv(memory)
+    assert list(samples[0]) == ["episodes", "rss_mib"]
+    assert samples[0]["episodes"] == "0" and int(samples[-1]["episodes"]) >= 5
+    assert report["memory"]["episodes"] >= 5 and report["memory"]["start_mib"] > 0
+    assert report["goal_met"] is None  # neither MiniWorld nor N=64 was measured
+
+
+def test_env_scaling_refuses_bad_values(env_scaling, capsys):
+    with pytest.raises(SystemExit):
+        env_scaling.main(["--num-envs", "4", "0"])
+    assert "num_envs must be >= 1, got 0" in capsys.readouterr().err
+
+
+def test_performance_md_quotes_the_committed_scaling_csv():
+    root = SCRIPT.parent.parent
+    rows = read_csv(root / "benchmarks" / "results" / "env_scaling.csv")
+    text = (root / "docs" / "performance.md").read_text()
+    table = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        table[cells[0]] = cells[1:]
+    assert table["rooms N"] == [row["num_envs"] for row in rows]
+    assert table["cycles/s (summed over rooms)"] == [f"{float(row['cycles_per_s']):,.0f}" for row in rows]
+    assert table[f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"] == [
+        f"{float(row['ratio']):.2f}" for row in rows
+    ]
