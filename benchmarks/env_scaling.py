@@ -124,14 +124,7 @@ def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[
     views of restarted rooms), ``look`` (the pan joint set), ``reset`` (new layouts of finished rooms); and
     ``cycles_per_s``, summed over the rooms, for comparison with the TorchRL env at the same N.
     """
-    import numpy as np
-
-    import activeperc_env
-
-    sim = activeperc_env.Simulator(num_envs=num_envs)
-    sim.reset(seeds=seed + np.arange(num_envs))
-    sim.render()
-    rng = np.random.default_rng(seed)
+    sim, rng = env_speed.random_core(num_envs, seed)
     spent = dict.fromkeys(("physics", "render", "look", "reset"), 0.0)
 
     def timed(part: str, call: Callable[[], object]) -> None:
@@ -140,14 +133,7 @@ def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[
         spent[part] += time.perf_counter() - start
 
     def cycle() -> int:
-        timed("physics", lambda: sim.move(rng.integers(0, 3, num_envs)))
-        timed("render", sim.render)
-        timed("look", lambda: sim.look(rng.integers(0, 3, num_envs)))
-        timed("render", sim.render)
-        done = np.flatnonzero(sim.done)
-        if done.size:
-            timed("reset", lambda: sim.reset(done))
-            timed("render", lambda: sim.render(done))
+        env_speed.core_cycle(sim, rng, timed)
         return 1
 
     try:

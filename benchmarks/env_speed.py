@@ -102,8 +102,30 @@ def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
         env.close()
 
 
-def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
-    """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
+def untimed(part: str, call: Callable[[], object]) -> None:
+    """The ``timed`` hook of :func:`core_cycle` that only makes the call."""
+    call()
+
+
+def core_cycle(sim, rng, timed: Callable[[str, Callable[[], object]], None] = untimed) -> None:
+    """One random-action cycle of every room of ``sim``: move, render, look, render, then reset and render the
+    finished rooms. Each step goes through ``timed(part, call)``, ``part`` being 'physics', 'render', 'look'
+    or 'reset'."""
+    import numpy as np
+
+    num_envs = sim.num_envs
+    timed("physics", lambda: sim.move(rng.integers(0, 3, num_envs)))
+    timed("render", sim.render)
+    timed("look", lambda: sim.look(rng.integers(0, 3, num_envs)))
+    timed("render", sim.render)
+    done = np.flatnonzero(sim.done)
+    if done.size:
+        timed("reset", lambda: sim.reset(done))
+        timed("render", lambda: sim.render(done))
+
+
+def random_core(num_envs: int, seed: int):
+    """A ``Simulator(num_envs)`` reset from ``seed`` with its first views rendered, and the rng of its actions."""
     import numpy as np
 
     import activeperc_env
@@ -111,17 +133,15 @@ def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float
     sim = activeperc_env.Simulator(num_envs=num_envs)
     sim.reset(seeds=seed + np.arange(num_envs))
     sim.render()
-    rng = np.random.default_rng(seed)
+    return sim, np.random.default_rng(seed)
+
+
+def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
+    """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
+    sim, rng = random_core(num_envs, seed)
 
     def cycle() -> int:
-        sim.move(rng.integers(0, 3, num_envs))
-        sim.render()
-        sim.look(rng.integers(0, 3, num_envs))
-        sim.render()
-        done = np.flatnonzero(sim.done)
-        if done.size:
-            sim.reset(done)
-            sim.render(done)
+        core_cycle(sim, rng)
         return num_envs
 
     try:
