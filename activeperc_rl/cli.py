@@ -18,9 +18,9 @@ import time
 from pathlib import Path
 
 from activeperc_env import EnvConfig
-from activeperc_rl.config import DEVICES, METHODS, TrainConfig, load_yaml
+from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml
 
-CHOICES = {"method": METHODS, "device": DEVICES}
+CHOICES = {"method": METHODS, "device": DEVICES, "mover_rollouts": MOVER_ROLLOUTS, "e1_looks": E1_LOOKS}
 
 
 def field_docs(cls) -> dict[str, str]:

@@ -22,6 +22,7 @@ from activeperc_env import EnvConfig
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
+E1_LOOKS = ("greedy", "sample")
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,12 @@ class TrainConfig:
     look): its output layer starts at zero weights and a bias on 'hold', so E2's greedy look starts by holding
     instead of the one look a random init prefers in nearly every view (experiments/untrained_looker.py).
     1/3 makes every look equally likely (argmax then picks 'pan left'); the paper does not say."""
+    e1_looks: str = "greedy"
+    """'meta': how phi1 picks its looks in E1 and at test time. 'greedy': argmax of phi1, as E2 picks phi2's looks
+    when it does not explore, so E1 and E2 differ only in phi2's parameters and E2's exploration, and an untrained
+    phi1 holds the camera forward (E1 starts as Fixed_Forward). 'sample': draw from phi1's distribution; untrained,
+    it pans on 1 - looker_hold_prob of the cycles, a random walk that leaves the camera off to the side for most
+    of an episode. The paper does not say."""
     mover_rollouts: str = "d1"
     """'meta': the rollouts the mover learns from. 'd1' (the paper): one A2C step on the D1 sampled after the soft
     update. 'all': first an A2C step on the first D1 and D2 together (after the meta step, which reads w1 as the
@@ -122,6 +129,7 @@ class TrainConfig:
             "epsilon": (0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
             "alpha": (0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
             "looker_hold_prob": (0.0 < self.looker_hold_prob < 1.0, "a probability in (0, 1)"),
+            "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "curriculum_fraction": (0.0 < self.curriculum_fraction < 1.0, "a number in (0, 1)"),
             "channels": (

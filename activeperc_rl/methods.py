@@ -341,6 +341,8 @@ class Meta(_MoverA2C):
         start_holding(self.phi2, config.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)
+        # E1's looker: phi1's argmax ('greedy') or phi1 itself, which samples ('sample')
+        self.e1_looker = EpsilonGreedyLooker(self.phi1, 0.0) if config.e1_looks == "greedy" else self.phi1
         self.w2 = copy.deepcopy(self.critic)
         self.w2.requires_grad_(False)
         self.meta_loss = MetaEvaluationLoss(self.phi2, self.w2, self.critic, entropy_coeff=config.looker_entropy_coeff)
@@ -350,7 +352,7 @@ class Meta(_MoverA2C):
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
         e2_seed_offset = 0 if self.config.shared_seeds else 1
-        self.e1 = self._collector(self.actor, looker=self.phi1)
+        self.e1 = self._collector(self.actor, looker=self.e1_looker)
         self.e2 = self._collector(
             self.actor, looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon), seed_offset=e2_seed_offset
         )
@@ -375,8 +377,9 @@ class Meta(_MoverA2C):
         return Iteration(frames, returns, losses)
 
     def policy(self):
-        """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper."""
-        return self.actor, self.phi1
+        """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper, picking its
+        looks as in E1 (``e1_looks``)."""
+        return self.actor, self.e1_looker
 
 
 METHOD_CLASSES = {

@@ -4,6 +4,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 from torch import nn
+from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
 from activeperc_rl.methods import finished_returns, looker_transitions, soft_update
@@ -160,3 +161,28 @@ def test_looker_and_mover_entropy_weights_are_separate():
     assert float(ia2c.looker_loss.entropy_coeff) == pytest.approx(0.005)
     assert float(meta.mover_loss.entropy_coeff) == pytest.approx(0.02)
     assert float(meta.meta_loss.entropy_coeff) == pytest.approx(0.005)
+
+
+@pytest.mark.parametrize("e1_looks", ["greedy", "sample"])
+def test_meta_e1_looks(e1_looks):
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    config = TrainConfig(channels=(4,), hidden_size=8, e1_looks=e1_looks, looker_hold_prob=0.9)
+    meta = make_method(config, torch.device("cpu"), start=False)
+    mover, looker = meta.policy()
+    assert mover is meta.actor
+    views = TensorDict(
+        {"looker": {"observation": {"image": torch.randint(0, 256, (400, 60, 80, 3), dtype=torch.uint8),
+                                    "pan": torch.rand(400, 1)}}},
+        batch_size=[400],
+    )  # fmt: skip
+    with set_exploration_type(ExplorationType.RANDOM):  # as in the collectors and activeperc-eval
+        looks = looker(views.clone()).get(("looker", "action"))
+    if e1_looks == "greedy":
+        assert (looks == 1).all()  # the untrained phi1's argmax holds
+        with torch.no_grad():
+            meta.phi1[0].module.out.bias.copy_(torch.tensor([5.0, 0.0, 0.0]))
+        assert (looker(views.clone()).get(("looker", "action")) == 0).all()  # it follows phi1's weights
+    else:
+        assert 0.8 < (looks == 1).float().mean() < 0.97  # draws from phi1: hold with probability 0.9
