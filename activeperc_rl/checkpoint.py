@@ -9,11 +9,11 @@ written after the checkpoint are dropped, so ``frames`` stays monotone.
 from __future__ import annotations
 
 import csv
-import os
 from pathlib import Path
 
 import torch
 
+from activeperc_rl.atomic import atomic_path
 from activeperc_rl.config import TrainConfig
 
 CHECKPOINT = "checkpoint.pt"
@@ -24,13 +24,8 @@ METRIC_COLUMNS = ("frames", "iteration", "time_s", "fps", "success_rate", "mean_
 
 def save_checkpoint(path: str | Path, state: dict) -> None:
     """Write ``state`` with ``torch.save`` atomically (temporary file, fsync, rename)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        torch.save(state, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    with atomic_path(path) as temporary:
+        torch.save(state, temporary)
 
 
 def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict:
@@ -83,12 +78,10 @@ class MetricsLog:
         if keep_until is not None and self.path.is_file():
             with open(self.path, newline="") as f:
                 rows = [r for r in csv.DictReader(f) if int(r["frames"]) <= keep_until]
-        tmp = self.path.with_name(f".{self.path.name}.tmp")
-        with open(tmp, "w", newline="") as f:
+        with atomic_path(self.path) as temporary, open(temporary, "w", newline="") as f:
             writer = csv.DictWriter(f, METRIC_COLUMNS)
             writer.writeheader()
             writer.writerows(rows)
-        os.replace(tmp, self.path)
         self._file = open(self.path, "a", newline="")  # noqa: SIM115 - kept open for the run
         self._writer = csv.DictWriter(self._file, METRIC_COLUMNS)
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import yaml
 
 from activeperc_env import EnvConfig
+from activeperc_rl.atomic import atomic_path
 
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
@@ -188,10 +189,8 @@ def load_yaml(path: str | Path) -> dict:
 
 def save_yaml(config: TrainConfig, path: str | Path) -> None:
     """Write ``config`` as YAML (written to a temporary file first, then renamed over ``path``)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
-    tmp.replace(path)
+    with atomic_path(path) as temporary:
+        temporary.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
 
 
 def _is_int(value) -> bool:

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
+from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
@@ -125,11 +126,8 @@ def _video_frame(env, td) -> np.ndarray:
 def _write_video(path: str | Path, frames: list[np.ndarray]) -> None:
     import imageio.v2 as imageio
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    imageio.mimwrite(tmp, frames, fps=10, macro_block_size=1)
-    tmp.replace(path)
+    with atomic_path(path) as temporary:
+        imageio.mimwrite(temporary, frames, fps=10, macro_block_size=1)
 
 
 def main(argv: list[str] | None = None) -> int:

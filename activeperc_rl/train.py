@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import (
     CHECKPOINT,
     CONFIG,
@@ -194,6 +195,5 @@ def _interruptible():
 
 
 def _write_json(path: Path, values: dict) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(values, indent=2) + "\n")
-    tmp.replace(path)
+    with atomic_path(path) as temporary:
+        temporary.write_text(json.dumps(values, indent=2) + "\n")

@@ -39,7 +39,6 @@ import gc
 import json
 import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -47,6 +46,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py sits next to this file
 
 import env_speed  # noqa: E402 (needs the path above)
+
+from activeperc_rl.atomic import atomic_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_NUM_ENVS = (1, 4, 16, 64, 256, 1024)
@@ -190,29 +191,12 @@ def measure_memory(episodes: int, num_envs: int, warmup: float, seed: int) -> di
     }
 
 
-def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Create ``path``'s folder, let ``write`` fill a temporary file beside ``path``, then rename it to ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(handle)
-    try:
-        write(Path(temporary))
-        os.replace(temporary, path)
-    except BaseException:
-        os.unlink(temporary)
-        raise
-
-
 def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
     """Write ``rows`` under ``header`` to the CSV file ``path`` (atomically; ``None`` cells are left empty)."""
-
-    def write(temporary: Path) -> None:
-        with open(temporary, "w", newline="") as out:
-            writer = csv.writer(out)
-            writer.writerow(header)
-            writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
-
-    write_atomic(path, write)
+    with atomic_path(path) as temporary, open(temporary, "w", newline="") as out:
+        writer = csv.writer(out)
+        writer.writerow(header)
+        writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
 
 
 def plot_scaling(path: Path, rates: dict[int, float], peer: float | None, cpus: int) -> None:
@@ -237,7 +221,8 @@ def plot_scaling(path: Path, rates: dict[int, float], peer: float | None, cpus: 
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()
-    write_atomic(path, lambda temporary: fig.savefig(temporary, format=path.suffix[1:] or "png", dpi=120))
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, format=path.suffix[1:] or "png", dpi=120)
     plt.close(fig)
 
 

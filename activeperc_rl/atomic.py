@@ -1,0 +1,36 @@
+"""Files written so that a kill at any moment leaves the previous version whole.
+
+Every file a run or a benchmark leaves (checkpoint, metrics, config, results, plots, videos) is
+written to a temporary file beside its destination, flushed to disk, and renamed over it.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` to write to; when the block ends, that file replaces ``path``.
+
+    The temporary file keeps ``path``'s suffix (writers that pick a format from it still work), is
+    flushed to disk before the rename, and is removed if the block raises, leaving ``path`` untouched.
+    ``path``'s folder is created if needed.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(handle)
+    temporary = Path(name)
+    try:
+        yield temporary
+        with open(temporary, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
