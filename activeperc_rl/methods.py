@@ -365,7 +365,8 @@ class Meta(_MoverA2C):
         soft_update(self.phi1, self.phi2, self.config.alpha)
         if self.config.mover_rollouts == "all":
             both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
-            losses |= self._update_mover(both)
+            first = self._update_mover(both)  # logged apart from the D1 step's losses, which would overwrite them
+            losses |= {key.replace("mover/", "mover_d1_d2/", 1): value for key, value in first.items()}
         if self.config.resample_d1:
             d1 = self._next(self.e1)
             frames += d1.numel()

@@ -128,10 +128,14 @@ def test_curriculum_keeps_its_switch_point_on_resume():
 
 
 @pytest.mark.parametrize(
-    ("mover_rollouts", "resample_d1", "expected"),
-    [("d1", True, [2]), ("all", True, [4, 2]), ("all", False, [4])],
+    ("mover_rollouts", "resample_d1", "expected", "logged"),
+    [
+        ("d1", True, [2], {"mover"}),
+        ("all", True, [4, 2], {"mover_d1_d2", "mover"}),
+        ("all", False, [4], {"mover_d1_d2"}),
+    ],
 )
-def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected):
+def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method
 
@@ -147,6 +151,7 @@ def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected):
     finally:
         method.close()
     assert rooms == expected
+    assert {key.split("/")[0] for key in iteration.losses if key.endswith("/loss_objective")} == logged
     assert iteration.frames == (3 if resample_d1 else 2) * 2 * 4
 
 
