@@ -33,6 +33,7 @@ from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.losses import MetaEvaluationLoss
 from activeperc_rl.models import (
+    HOLD,
     JOINT,
     EpsilonGreedyLooker,
     FixedLooker,
@@ -375,6 +376,7 @@ class Meta(_MoverA2C):
             losses |= self._update_mover(d1)
         self.w2.load_state_dict(self.critic.state_dict())
         losses["meta/e2_success_rate"] = _success_rate(finished_returns(d2))
+        losses["meta/e1_pan_rate"] = float((d1.get(("next", LOOKER, "action")) != HOLD).float().mean())
         return Iteration(frames, returns, losses)
 
     def policy(self):

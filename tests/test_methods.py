@@ -152,6 +152,7 @@ def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
         method.close()
     assert rooms == expected
     assert {key.split("/")[0] for key in iteration.losses if key.endswith("/loss_objective")} == logged
+    assert iteration.losses["meta/e1_pan_rate"] == 0.0  # E1 plays the untrained phi1's argmax: hold
     assert iteration.frames == (3 if resample_d1 else 2) * 2 * 4
 
 
