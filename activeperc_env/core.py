@@ -65,7 +65,7 @@ class Simulator:
         self.num_envs = num_envs
         self.model = load_model(self.config)
         self.substeps = max(1, round(1.0 / (self.config.control_hz * self.model.opt.timestep)))
-        nthread = min(nthread or _cpu_count(), num_envs)
+        nthread = min(nthread or usable_cpus(), num_envs)
         self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
         self._qpos = self._batch.bind("qpos")
         self._qvel = self._batch.bind("qvel")
@@ -264,6 +264,6 @@ def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: s
     return arr.astype(np.int64)
 
 
-def _cpu_count() -> int:
+def usable_cpus() -> int:
     """CPUs this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +31,7 @@ from torch import nn
 from torchrl.collectors import Collector
 from torchrl.objectives import A2CLoss, ValueEstimators
 
+from activeperc_env.core import usable_cpus
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.losses import MetaEvaluationLoss
@@ -138,15 +141,21 @@ class Method:
         params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
         self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5)
 
-    def _step(self, name: str, losses: TensorDictBase) -> dict[str, float]:
-        """One optimizer step on the sum of the ``loss_*`` entries; returns them as floats."""
-        total = sum(v for k, v in losses.items() if k.startswith("loss_"))
-        optimizer = self.optimizers[name]
-        optimizer.zero_grad(set_to_none=True)
-        total.backward()
-        params = [p for group in optimizer.param_groups for p in group["params"]]
-        torch.nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)
-        optimizer.step()
+    def _step(self, name: str, loss: nn.Module, *inputs: TensorDictBase) -> dict[str, float]:
+        """One step of optimizer ``name`` on the sum of the ``loss_*`` entries of ``loss(*inputs)``.
+
+        Returns the loss's scalar entries as floats. The loss and its gradients run on ``learner_threads``
+        CPU threads (the environments wait meanwhile).
+        """
+        with torch_threads(self.config.learner_threads or usable_cpus()):
+            losses = loss(*inputs)
+            total = sum(v for k, v in losses.items() if k.startswith("loss_"))
+            optimizer = self.optimizers[name]
+            optimizer.zero_grad(set_to_none=True)
+            total.backward()
+            params = [p for group in optimizer.param_groups for p in group["params"]]
+            torch.nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)
+            optimizer.step()
         return {f"{name}/{k}": float(v.detach()) for k, v in losses.items() if v.numel() == 1}
 
     # ---------------------------------------------------------------- interface
@@ -201,7 +210,7 @@ class _MoverA2C(Method):
         self.actor, self.critic, self.mover_loss = self._actor_critic("mover", MOVER, config.lr)
 
     def _update_mover(self, rollout: TensorDictBase) -> dict[str, float]:
-        return self._step("mover", self.mover_loss(rollout))
+        return self._step("mover", self.mover_loss, rollout)
 
 
 class FixedForward(_MoverA2C):
@@ -253,7 +262,7 @@ class IA2C(_MoverA2C):
         transitions, valid = looker_transitions(rollout)
         with torch.no_grad():
             self.looker_loss.value_estimator(transitions)
-        losses |= self._step("looker", self.looker_loss(transitions[valid]))
+        losses |= self._step("looker", self.looker_loss, transitions[valid])
         return Iteration(rollout.numel(), finished_returns(rollout), losses)
 
     def policy(self):
@@ -279,7 +288,7 @@ class Joint(Method):
     def iterate(self) -> Iteration:
         """One rollout, one A2C step."""
         rollout = self._next(self.collector)
-        losses = self._step("joint", self.loss(rollout))
+        losses = self._step("joint", self.loss, rollout)
         return Iteration(rollout.numel(), finished_returns(rollout), losses)
 
     def policy(self):
@@ -362,7 +371,7 @@ class Meta(_MoverA2C):
         """Steps 1 to 6 of the class docstring."""
         d1, d2 = self._next(self.e1), self._next(self.e2)
         frames, returns = d1.numel() + d2.numel(), finished_returns(d1)
-        losses = self._step("looker", self.meta_loss(d2, d1))
+        losses = self._step("looker", self.meta_loss, d2, d1)
         soft_update(self.phi1, self.phi2, self.config.alpha)
         if self.config.mover_rollouts == "all":
             both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
@@ -400,6 +409,17 @@ def make_method(config: TrainConfig, device: torch.device, start: bool = True) -
     if start:
         method.start()
     return method
+
+
+@contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """Run torch's CPU ops on ``count`` threads inside the block, then restore the previous count."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 @torch.no_grad()

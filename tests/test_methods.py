@@ -192,3 +192,28 @@ def test_meta_e1_looks(e1_looks):
         assert (looker(views.clone()).get(("looker", "action")) == 0).all()  # it follows phi1's weights
     else:
         assert 0.8 < (looks == 1).float().mean() < 0.97  # draws from phi1: hold with probability 0.9
+
+
+def test_updates_run_on_learner_threads():
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    config = TrainConfig(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, learner_threads=2)
+    method = make_method(config, torch.device("cpu"))
+    seen, loss = [], method.mover_loss
+
+    class Spy(nn.Module):
+        def forward(self, rollout):
+            seen.append(torch.get_num_threads())
+            return loss(rollout)
+
+    method.mover_loss = Spy()
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        method.iterate()
+        assert torch.get_num_threads() == 1  # collection keeps its thread count
+    finally:
+        method.close()
+        torch.set_num_threads(before)
+    assert seen == [2, 2]  # both of the mover's A2C steps ('all')
