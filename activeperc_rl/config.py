@@ -48,7 +48,8 @@ class TrainConfig:
     learner_threads: int = 0
     """Threads of torch's CPU ops during the updates (0: every CPU this process may use). The environments wait
     while the networks learn, so the updates may use every core; on 2 cores this cut a meta iteration's learning
-    from 725 to 414 ms. The results do not depend on it (same seed, same run on the CPU)."""
+    from 725 to 507 ms. The thread count may change float rounding in the updates, so a CPU run repeats exactly
+    with the same learner_threads (with the default networks, 1 and 2 threads gave the same runs in our checks)."""
     gamma: float = 0.99
     """Discount factor of the mover's (and IA2C looker's) A2C."""
     gae_lambda: float = 0.95
