@@ -66,8 +66,9 @@ class TrainConfig:
     looker_entropy_coeff: float = 0.0
     """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C). Until the
     critic tells rooms apart it is phi2's only steady gradient, and Adam makes full-size steps of it: at 0.01
-    phi2 drifts to near-uniform looks within about 30k frames and phi1's argmax (E1's looks) pans in 5-30 % of
-    E1's cycles by 50-90k frames, before the mover has learned anything. E2 explores by epsilon instead."""
+    phi2's entropy rose from 0.23 to 0.85 (1.10 is uniform) within about 30k frames, and phi1's argmax (E1's
+    looks) panned in 5-30 % of E1's cycles from 50k frames on, before the mover had learned anything. E2
+    explores by epsilon instead."""
     critic_coeff: float = 0.5
     """Weight of the critic's loss in the A2C loss."""
     max_grad_norm: float = 0.5
