@@ -1,0 +1,193 @@
+"""Aggregate the Figure 1 sweep: learning curves over seeds and the table of final results.
+
+Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.csv``) and
+
+- draws ``docs/figures/fig1_curves.png``: the training success rate and mean return (each a moving
+  average over the last 100 finished episodes, as ``metrics.csv`` logs them) against frames, one
+  column per field of view, the mean over seeds with a 95 % confidence band (Student's t over seeds;
+  no band with one seed); the dashed grey line is a random mover and looker on the held-out episodes;
+- writes the table of final held-out results into ``docs/reproduction.md`` between the markers
+  ``<!-- fig1-summary -->`` and ``<!-- /fig1-summary -->`` (and prints it).
+
+``--ablations`` does the same for ``results/ablations.csv`` (figure ``fig1_ablations.png``, markers
+``fig1-ablations``). Run from anywhere::
+
+    python experiments/fig1/aggregate.py
+    python experiments/fig1/aggregate.py --ablations
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # sweep.py sits next to this file
+
+from sweep import HERE, METHODS, read_summary  # noqa: E402
+
+from activeperc_rl.atomic import atomic_path  # noqa: E402
+
+ROOT = HERE.parent.parent
+DOC = ROOT / "docs" / "reproduction.md"
+GRID_POINTS = 100
+# Two-sided 95 % critical values of Student's t by degrees of freedom (standard statistical tables).
+T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,
+       15: 2.131, 20: 2.086, 30: 2.042}
+
+
+def t95(dof: int) -> float:
+    """The two-sided 95 % Student's t critical value for ``dof`` degrees of freedom.
+
+    Between the table's rows (and beyond 30) it takes the row below, whose value is larger: conservative.
+    """
+    if dof < 1:
+        raise ValueError(f"dof={dof} is invalid: expected an int >= 1")
+    return T95[max(d for d in T95 if d <= dof)]
+
+
+def mean_ci(values) -> tuple[float, float]:
+    """Mean and half-width of its 95 % confidence interval over the seeds (``nan`` half-width for one value)."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        raise ValueError("mean_ci needs at least one value")
+    if values.size == 1:
+        return float(values[0]), math.nan
+    return float(values.mean()), t95(values.size - 1) * float(values.std(ddof=1)) / math.sqrt(values.size)
+
+
+def read_curve(path: Path) -> dict[str, np.ndarray]:
+    """A run's exported curve as arrays, without the first rows where no episode had finished yet (maybe none)."""
+    with open(path, newline="") as file:
+        rows = list(csv.DictReader(file))
+    if not rows:
+        raise ValueError(f"{path} has no rows")
+    columns = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+    valid = ~np.isnan(columns["success_rate"])
+    return {key: values[valid] for key, values in columns.items()}
+
+
+def group_runs(rows: list[dict]) -> dict[tuple[str, int], list[dict]]:
+    """Summary rows grouped by (method, fov), in the paper's method order."""
+    groups: dict[tuple[str, int], list[dict]] = {}
+    for row in rows:
+        groups.setdefault((row["method"], int(row["fov"])), []).append(row)
+
+    def order(key):
+        return (METHODS.index(key[0]) if key[0] in METHODS else len(METHODS), key[0], key[1])
+
+    return {key: groups[key] for key in sorted(groups, key=order)}
+
+
+def seed_band(curves: list[dict[str, np.ndarray]], key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames, mean and 95 % half-width over seeds of one curve column, on a grid every curve covers."""
+    start = max(c["frames"][0] for c in curves)
+    stop = min(c["frames"][-1] for c in curves)
+    grid = np.linspace(start, stop, GRID_POINTS)
+    values = np.stack([np.interp(grid, c["frames"], c[key]) for c in curves])
+    if len(curves) == 1:
+        return grid, values[0], np.full_like(grid, np.nan)
+    half = t95(len(curves) - 1) * values.std(axis=0, ddof=1) / math.sqrt(len(curves))
+    return grid, values.mean(axis=0), half
+
+
+def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:
+    """Draw the training curves of every (method, fov) in ``rows`` into ``out`` (one column per fov)."""
+    groups = group_runs(rows)
+    fovs = sorted({fov for _, fov in groups})
+    figure, axes = plt.subplots(2, len(fovs), figsize=(6 * len(fovs), 7.5), squeeze=False, sharex=True)
+    colors = dict(zip(dict.fromkeys(m for m, _ in groups), plt.cm.tab10.colors, strict=False))
+    for column, fov in enumerate(fovs):
+        for (method, group_fov), runs in groups.items():
+            if group_fov != fov:
+                continue
+            curves = [read_curve(curves_dir / f"{method}_fov{fov}_seed{r['seed']}.csv") for r in runs]
+            curves = [c for c in curves if c["frames"].size]  # a run too short to finish an episode has no curve
+            if not curves:
+                continue
+            for row_index, key in enumerate(("success_rate", "mean_return")):
+                grid, mean, half = seed_band(curves, key)
+                axis = axes[row_index, column]
+                axis.plot(grid, mean, color=colors[method], label=f"{method} ({len(curves)} seeds)")
+                axis.fill_between(grid, mean - half, mean + half, color=colors[method], alpha=0.2)
+        random_rows = [r for runs in groups.values() for r in runs if int(r["fov"]) == fov]
+        for row_index, key in enumerate(("random_success_rate", "random_return")):
+            axes[row_index, column].axhline(
+                np.mean([float(r[key]) for r in random_rows]), color="grey", linestyle="--", label="random (held-out)"
+            )
+        axes[0, column].set_title(f"horizontal field of view {fov} degrees")
+        axes[0, column].set_ylabel("success rate (last 100 episodes)")
+        axes[1, column].set_ylabel("mean return (last 100 episodes)")
+        axes[1, column].set_xlabel("environment frames (E1 and E2 both for meta)")
+    axes[0, 0].legend(fontsize=8)
+    figure.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out) as temporary:
+        figure.savefig(temporary, format="png", dpi=100)
+    plt.close(figure)
+
+
+def summary_table(rows: list[dict]) -> str:
+    """The Markdown table of final held-out results: mean and 95 % interval over seeds per (method, fov)."""
+
+    def cell(values, digits=3):
+        mean, half = mean_ci([float(v) for v in values])
+        return f"{mean:.{digits}f}" if math.isnan(half) else f"{mean:.{digits}f} ± {half:.{digits}f}"
+
+    lines = [
+        "| fov | method | seeds | frames | held-out success | held-out return | random success | train min |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for (method, fov), runs in sorted(group_runs(rows).items(), key=lambda item: item[0][1]):
+        frames = sorted({int(r["frames"]) for r in runs})
+        lines.append(
+            f"| {fov} | {method} | {','.join(str(r['seed']) for r in runs)} | "
+            f"{frames[0] if len(frames) == 1 else f'{frames[0]}-{frames[-1]}'} | "
+            f"{cell(r['final_success_rate'] for r in runs)} | {cell(r['final_return'] for r in runs)} | "
+            f"{cell(r['random_success_rate'] for r in runs)} | {cell((r['train_minutes'] for r in runs), 1)} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def replace_between(text: str, marker: str, content: str) -> str:
+    """``text`` with what lies between ``<!-- marker -->`` and ``<!-- /marker -->`` replaced by ``content``."""
+    start, end = f"<!-- {marker} -->\n", f"<!-- /{marker} -->"
+    if start not in text or end not in text:
+        raise ValueError(f"the markers {start.strip()} and {end} are missing")
+    head, rest = text.split(start, 1)
+    return head + start + content + end + rest.split(end, 1)[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line; returns the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ablations", action="store_true", help="the ablations instead of Figure 1's runs")
+    parser.add_argument("--results", type=Path, default=HERE / "results", help="sweep.py's --results")
+    parser.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures", help="where the figure goes")
+    parser.add_argument("--doc", type=Path, default=DOC, help="the document whose table is updated")
+    args = parser.parse_args(argv)
+    name = "ablations" if args.ablations else "summary"
+    rows = read_summary(args.results / f"{name}.csv")
+    if not rows:
+        parser.error(f"no results in {args.results / f'{name}.csv'}: run sweep.py first")
+    figure = args.figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
+    plot_curves(rows, args.results / "runs", figure)
+    table = summary_table(rows)
+    print(table, end="")
+    marker = "fig1-ablations" if args.ablations else "fig1-summary"
+    with atomic_path(args.doc) as temporary:
+        temporary.write_text(replace_between(args.doc.read_text(), marker, table))
+    print(f"wrote {figure} and the table in {args.doc}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,329 @@
+"""Run the Figure 1 sweep: every method at both fields of view, several seeds, one frame budget.
+
+Each (config, seed) is one ``activeperc-train`` run in its own process, in ``RUNS/CONFIG/seedS``
+(checkpoints, TensorBoard, the full metrics.csv and the process's log ``train.log``). Configs are
+``configs/NAME_fovF.yaml`` (``configs/ablations/`` with ``--ablations``); every option they do not name
+is the default of ``TrainConfig`` / ``EnvConfig``, and every run gets the same ``--frames``.
+
+When a run has finished, its training curve is exported to ``RESULTS/runs/CONFIG_seedS.csv`` (frames,
+success_rate, mean_return; at most 200 rows) and its row is merged into ``RESULTS/summary.csv``
+(``RESULTS/ablations.csv`` for the ablations): the final checkpoint's evaluation on
+``--eval-episodes`` held-out episodes, beside a uniformly random mover and looker on the same ones.
+
+Resumable: run the same command again and finished runs are skipped, interrupted ones continue from
+their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. Ctrl-C stops
+every run cleanly (each saves its checkpoint first).
+
+Cores: the machine's CPUs are split into ``--jobs`` groups of ``--cores-per-job`` (default 1 core per
+run, as many runs at once as cores) and each run is pinned to its group, so its physics threads and its
+learner use that group only. Each run uses the GPU when one is present (``device: auto``).
+
+Examples (from the repository root)::
+
+    python experiments/fig1/sweep.py --frames 300000 --seeds 0            # the committed CPU pilot
+    python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2
+    python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 -- --num-envs 32
+    python experiments/fig1/sweep.py --ablations --frames 300000 --seeds 0 1 2
+
+Arguments after ``--`` go to every ``activeperc-train`` call unchanged.
+Then ``python experiments/fig1/aggregate.py`` draws the curves and updates docs/reproduction.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from activeperc_env.core import usable_cpus
+from activeperc_rl.atomic import atomic_path
+
+HERE = Path(__file__).resolve().parent
+CONFIGS = HERE / "configs"
+METHODS = ("meta_eps0.1", "meta_eps0.3", "fixed_forward", "joint", "ia2c", "curriculum")
+"""The paper's methods, in the order the sweep runs and the figures list them."""
+SUMMARY_COLUMNS = (
+    "method",
+    "fov",
+    "seed",
+    "frames",
+    "final_success_rate",
+    "final_return",
+    "random_success_rate",
+    "random_return",
+    "train_minutes",
+)
+CURVE_COLUMNS = ("frames", "success_rate", "mean_return")
+CURVE_ROWS = 200
+POLL_S = 1.0
+
+
+@dataclass(frozen=True)
+class Task:
+    """One run of the sweep: a config file and a seed."""
+
+    config: Path
+    seed: int
+
+    @property
+    def name(self) -> str:
+        """The config's name, ``METHOD_fovF`` (the run's folder name)."""
+        return self.config.stem
+
+    @property
+    def method(self) -> str:
+        """The method's name in the results (``meta_eps0.1``, ``fixed_forward``, an ablation's name, ...)."""
+        return self.name.rsplit("_fov", 1)[0]
+
+    @property
+    def fov(self) -> int:
+        """The horizontal field of view in the config's name."""
+        return int(self.name.rsplit("_fov", 1)[1])
+
+    @property
+    def label(self) -> str:
+        """``CONFIG_seedS``, the run's name in the results."""
+        return f"{self.name}_seed{self.seed}"
+
+    def run_dir(self, runs: Path) -> Path:
+        """Where the run's files go."""
+        return runs / self.name / f"seed{self.seed}"
+
+
+def find_configs(ablations: bool = False, only: list[str] | None = None, root: Path = CONFIGS) -> list[Path]:
+    """The sweep's config files, in the paper's method order and field of view 60 before 100.
+
+    ``only`` keeps the configs with those names (``ValueError`` naming any that does not exist).
+    """
+    folder = root / "ablations" if ablations else root
+    paths = [p for p in folder.glob("*.yaml") if "_fov" in p.stem]
+    if not paths:
+        raise ValueError(f"no NAME_fovF.yaml config in {str(folder)!r}")
+
+    def order(path: Path) -> tuple:
+        task = Task(path, 0)
+        rank = METHODS.index(task.method) if task.method in METHODS else len(METHODS)
+        return rank, task.fov, task.name
+
+    paths.sort(key=order)
+    if only:
+        names = {p.stem: p for p in paths}
+        missing = sorted(set(only) - set(names))
+        if missing:
+            raise ValueError(f"--only {missing}: no such config; known: {sorted(names)}")
+        paths = [p for p in paths if p.stem in only]
+    return paths
+
+
+def finished_frames(run_dir: Path) -> int | None:
+    """Frames of the run's final evaluation (``eval.json``), or ``None`` when it has none."""
+    path = run_dir / "eval.json"
+    return int(json.loads(path.read_text())["frames"]) if path.is_file() else None
+
+
+def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, extra: list[str]) -> list[str]:
+    """The ``activeperc-train`` call of a task: a resume when the run has a checkpoint, else a fresh run."""
+    command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--frames", str(frames)]
+    if (run_dir / "checkpoint.pt").is_file():
+        command.append("--resume")
+    else:
+        command += ["--config", str(task.config), "--seed", str(task.seed)]
+    return command + ["--eval-episodes", str(eval_episodes), "--no-progress", *extra]
+
+
+def export_run(task: Task, run_dir: Path, results: Path) -> dict:
+    """Write the run's compact training curve into ``results/runs/`` and return its summary row."""
+    with open(run_dir / "metrics.csv", newline="") as file:
+        rows = list(csv.DictReader(file))
+    if not rows:
+        raise ValueError(f"{run_dir / 'metrics.csv'} has no rows")
+    keep = np.unique(np.linspace(0, len(rows) - 1, min(CURVE_ROWS, len(rows))).round().astype(int))
+    curve = results / "runs" / f"{task.label}.csv"
+    curve.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(curve) as temporary, open(temporary, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(CURVE_COLUMNS)
+        writer.writerows([rows[i][c] for c in CURVE_COLUMNS] for i in keep)
+    evaluation = json.loads((run_dir / "eval.json").read_text())
+    return {
+        "method": task.method,
+        "fov": task.fov,
+        "seed": task.seed,
+        "frames": evaluation["frames"],
+        "final_success_rate": evaluation["learned"]["success_rate"],
+        "final_return": round(evaluation["learned"]["mean_return"], 4),
+        "random_success_rate": evaluation["random"]["success_rate"],
+        "random_return": round(evaluation["random"]["mean_return"], 4),
+        "train_minutes": round(float(rows[-1]["time_s"]) / 60, 1),
+    }
+
+
+def read_summary(path: Path) -> list[dict]:
+    """The rows of a summary CSV (empty when the file does not exist)."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def merge_summary(path: Path, new_rows: list[dict]) -> None:
+    """Replace the rows of ``path`` that share (method, fov, seed) with ``new_rows`` (atomic rewrite)."""
+    rows = {(r["method"], str(r["fov"]), str(r["seed"])): r for r in read_summary(path)}
+    rows |= {(r["method"], str(r["fov"]), str(r["seed"])): r for r in new_rows}
+
+    def order(key):
+        method, fov, seed = key
+        return (METHODS.index(method) if method in METHODS else len(METHODS), method, int(fov), int(seed))
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as temporary, open(temporary, "w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=SUMMARY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows[key] for key in sorted(rows, key=order))
+
+
+def core_groups(jobs: int | None, cores_per_job: int) -> list[list[int] | None]:
+    """One CPU set per concurrent run (``None``: no pinning, when the runs would not fit the CPUs)."""
+    if cores_per_job < 1:
+        raise ValueError(f"--cores-per-job={cores_per_job} is invalid: expected an int >= 1")
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else list(range(usable_cpus()))
+    jobs = jobs if jobs is not None else max(1, len(cpus) // cores_per_job)
+    if jobs < 1:
+        raise ValueError(f"--jobs={jobs} is invalid: expected an int >= 1")
+    if jobs * cores_per_job > len(cpus) or not hasattr(os, "sched_setaffinity"):
+        return [None] * jobs
+    return [cpus[i * cores_per_job : (i + 1) * cores_per_job] for i in range(jobs)]
+
+
+def run_sweep(
+    tasks: list[Task],
+    frames: int,
+    runs: Path,
+    summary: Path,
+    eval_episodes: int = 100,
+    groups: list[list[int] | None] | None = None,
+    extra: list[str] | None = None,
+) -> int:
+    """Run every unfinished task, ``len(groups)`` at a time, exporting each as it finishes.
+
+    Returns 0 when every task finished, 1 when some failed (their logs are named), 130 on Ctrl-C.
+    """
+    groups = groups or [None]
+    extra = extra or []
+    results = summary.parent
+    pending, done_rows = [], []
+    for task in tasks:
+        reached = finished_frames(task.run_dir(runs))
+        if reached is not None and reached >= frames:
+            done_rows.append(export_run(task, task.run_dir(runs), results))
+        else:
+            pending.append(task)
+    if done_rows:
+        merge_summary(summary, done_rows)
+    print(f"sweep: {len(tasks)} runs of {frames} frames: {len(done_rows)} done, {len(pending)} to run "
+          f"({len(groups)} at a time)", flush=True)
+    running: dict[int, tuple[subprocess.Popen, Task, float]] = {}
+    free = list(range(len(groups)))
+    failed = []
+    try:
+        while pending or running:
+            while pending and free:
+                slot, task = free.pop(0), pending.pop(0)
+                running[slot] = (_start(task, runs, frames, eval_episodes, groups[slot], extra), task, time.time())
+                print(f"sweep: start {task.label}" + (f" on CPUs {groups[slot]}" if groups[slot] else ""), flush=True)
+            time.sleep(POLL_S)
+            for slot, (process, task, started) in list(running.items()):
+                if process.poll() is None:
+                    continue
+                del running[slot]
+                free.append(slot)
+                run_dir = task.run_dir(runs)
+                reached = finished_frames(run_dir)
+                minutes = (time.time() - started) / 60
+                if process.returncode == 0 and reached is not None and reached >= frames:
+                    row = export_run(task, run_dir, results)
+                    merge_summary(summary, [row])
+                    print(f"sweep: done {task.label} in {minutes:.1f} min: success {row['final_success_rate']} "
+                          f"(random {row['random_success_rate']})", flush=True)
+                else:
+                    failed.append(task)
+                    print(f"sweep: FAILED {task.label} (exit {process.returncode}); see {run_dir / 'train.log'}",
+                          flush=True)
+    except KeyboardInterrupt:
+        print("\nsweep: Ctrl-C: every run saves its checkpoint and stops; run the same command to continue",
+              flush=True)
+        for process, _, _ in running.values():
+            process.send_signal(signal.SIGINT)
+        for process, _, _ in running.values():
+            process.wait()
+        return 130
+    if failed:
+        print(f"sweep: {len(failed)} run(s) failed: {', '.join(t.label for t in failed)}", flush=True)
+        return 1
+    print(f"sweep: all {len(tasks)} runs done; rows in {summary}", flush=True)
+    return 0
+
+
+def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra) -> subprocess.Popen:
+    """Start a task's training process (its own session, so a terminal's Ctrl-C reaches it only through us)."""
+    run_dir = task.run_dir(runs)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    command = train_command(task, run_dir, frames, eval_episodes, extra)
+    log = open(run_dir / "train.log", "a")  # the child writes to its own copy; ours is closed below
+    log.write(f"$ {' '.join(command)}\n")
+    log.flush()
+    pin = (lambda: os.sched_setaffinity(0, cpus)) if cpus else None
+    process = subprocess.Popen(
+        command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=pin
+    )
+    log.close()
+    return process
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line of the sweep; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    extra = argv[argv.index("--") + 1 :] if "--" in argv else []
+    argv = argv[: argv.index("--")] if "--" in argv else argv
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=300_000, help="frame budget of every run (default 300000)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="seeds of every config")
+    parser.add_argument("--only", nargs="+", metavar="CONFIG", help="run only these configs (names without .yaml)")
+    parser.add_argument("--ablations", action="store_true", help="run configs/ablations/ instead of Figure 1's")
+    parser.add_argument("--jobs", type=int, help="runs at once (default: CPUs // cores-per-job)")
+    parser.add_argument("--cores-per-job", type=int, default=1, help="CPUs each run is pinned to (default 1)")
+    parser.add_argument("--eval-episodes", type=int, default=100, help="held-out episodes of the final evaluation")
+    parser.add_argument("--runs", type=Path, default=HERE / "runs", help="run directories (default fig1/runs)")
+    parser.add_argument("--results", type=Path, default=HERE / "results", help="exported results (fig1/results)")
+    parser.add_argument("--dry-run", action="store_true", help="print the runs and their state, run nothing")
+    args = parser.parse_args(argv)
+    try:
+        if args.frames < 1 or args.eval_episodes < 1:
+            raise ValueError(f"--frames={args.frames} and --eval-episodes={args.eval_episodes} must be >= 1")
+        configs = find_configs(args.ablations, args.only)
+        groups = core_groups(args.jobs, args.cores_per_job)
+    except ValueError as error:
+        parser.error(str(error))
+    tasks = [Task(config, seed) for seed in args.seeds for config in configs]
+    summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
+    if args.dry_run:
+        for task in tasks:
+            reached = finished_frames(task.run_dir(args.runs))
+            state = "done" if reached is not None and reached >= args.frames else "to run"
+            command = train_command(task, task.run_dir(args.runs), args.frames, args.eval_episodes, extra)
+            print(f"{task.label}: {state}: {' '.join(command)}")
+        return 0
+    return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

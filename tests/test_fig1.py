@@ -1,0 +1,160 @@
+"""experiments/fig1: the configs, the sweep runner (tiny runs, resume, Ctrl-C), the aggregation and the figures."""
+
+import csv
+import importlib
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from activeperc_rl.config import TrainConfig, load_yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+FIG1 = ROOT / "experiments" / "fig1"
+TINY = ["--", "--num-envs", "2", "--rollout-length", "4", "--max-cycles", "10", "--checkpoint-every", "0.5"]
+
+
+def load(name):
+    """A script of experiments/fig1 as a module (experiments/ is not a package)."""
+    if str(FIG1) not in sys.path:
+        sys.path.insert(0, str(FIG1))
+    return importlib.import_module(name)
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    return load("sweep")
+
+
+@pytest.fixture(scope="module")
+def aggregate():
+    return load("aggregate")
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_one_config_per_method_and_fov(sweep):
+    configs = sweep.find_configs()
+    assert [(sweep.Task(p, 0).method, sweep.Task(p, 0).fov) for p in configs] == [
+        (m, f) for m in sweep.METHODS for f in (60, 100)
+    ]
+    for path in configs:
+        task = sweep.Task(path, 0)
+        config = TrainConfig.from_dict(load_yaml(path))
+        assert config.env.fov == task.fov
+        assert config.method == ("meta" if task.method.startswith("meta") else task.method)
+        if task.method.startswith("meta"):
+            assert config.epsilon == float(task.method.removeprefix("meta_eps"))
+        # only the method, epsilon and fov are set: everything else is the default
+        default = TrainConfig(method=config.method, epsilon=config.epsilon).replace(fov=config.env.fov)
+        assert config == default
+
+
+def test_ablations_change_one_option_of_meta_eps03_fov60(sweep):
+    reference = TrainConfig.from_dict(load_yaml(FIG1 / "configs" / "meta_eps0.3_fov60.yaml")).to_dict()
+    changed = {}
+    for path in sweep.find_configs(ablations=True):
+        values = TrainConfig.from_dict(load_yaml(path)).to_dict()
+        changed[path.stem] = {k: v for k, v in values.items() if v != reference[k]}
+    assert changed == {
+        "meta_eps0.3_independent_seeds_fov60": {"shared_seeds": False},
+        "meta_eps0.3_alpha0.01_fov60": {"alpha": 0.01},
+        "meta_eps0.3_alpha0.2_fov60": {"alpha": 0.2},
+        "meta_eps0.3_paper_mover_fov60": {"mover_rollouts": "d1"},
+    }
+
+
+def test_unknown_config_is_named(sweep, capsys):
+    with pytest.raises(SystemExit):
+        sweep.main(["--only", "meta_eps0.5_fov60", "--dry-run"])
+    assert "meta_eps0.5_fov60" in capsys.readouterr().err
+
+
+def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys):
+    runs, results = tmp_path / "runs", tmp_path / "results"
+    base = ["--only", "fixed_forward_fov60", "meta_eps0.1_fov100", "--seeds", "3", "--eval-episodes", "2"]
+    base += ["--runs", str(runs), "--results", str(results), "--jobs", "2"]
+    assert sweep.main([*base, "--frames", "64", *TINY]) == 0
+    rows = read_csv(results / "summary.csv")
+    assert list(rows[0]) == list(sweep.SUMMARY_COLUMNS)
+    keys = [(r["method"], r["fov"], r["seed"]) for r in rows]
+    assert keys == [("meta_eps0.1", "100", "3"), ("fixed_forward", "60", "3")]
+    assert all(64 <= int(r["frames"]) < 128 for r in rows)
+    for row in rows:
+        curve = read_csv(results / "runs" / f"{row['method']}_fov{row['fov']}_seed3.csv")
+        assert list(curve[0]) == ["frames", "success_rate", "mean_return"]
+        assert curve[-1]["frames"] == row["frames"]
+        assert 0.0 <= float(row["final_success_rate"]) <= 1.0
+
+    capsys.readouterr()
+    assert sweep.main([*base, "--frames", "64", *TINY]) == 0  # everything is done: nothing runs
+    assert "2 done, 0 to run" in capsys.readouterr().out
+
+    assert sweep.main([*base, "--frames", "160", *TINY]) == 0  # a larger budget continues both runs
+    assert "--resume" in (runs / "fixed_forward_fov60" / "seed3" / "train.log").read_text()
+    extended = read_csv(results / "summary.csv")
+    assert all(int(r["frames"]) >= 160 for r in extended)
+    frames = [int(r["frames"]) for r in read_csv(runs / "fixed_forward_fov60" / "seed3" / "metrics.csv")]
+    assert frames == sorted(frames) and len(set(frames)) == len(frames)
+
+    doc = tmp_path / "doc.md"
+    doc.write_text("before\n<!-- fig1-summary -->\nold\n<!-- /fig1-summary -->\nafter\n")
+    assert aggregate.main(["--results", str(results), "--figures", str(tmp_path / "fig"), "--doc", str(doc)]) == 0
+    assert (tmp_path / "fig" / "fig1_curves.png").stat().st_size > 0
+    text = doc.read_text()
+    assert text.startswith("before\n<!-- fig1-summary -->\n| fov |")
+    assert text.endswith("<!-- /fig1-summary -->\nafter\n")
+    assert "| 60 | fixed_forward | 3 |" in text and "| 100 | meta_eps0.1 | 3 |" in text
+
+
+def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
+    runs = tmp_path / "runs"
+    argv = [sys.executable, str(FIG1 / "sweep.py"), "--only", "joint_fov60", "--seeds", "0", "--frames", "100000"]
+    argv += ["--runs", str(runs), "--results", str(tmp_path / "results"), *TINY]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    metrics = runs / "joint_fov60" / "seed0" / "metrics.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (metrics.is_file() and len(metrics.read_text().splitlines()) > 3):
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)
+    output, _ = process.communicate(timeout=120)
+    assert process.returncode == 130, output
+    assert (runs / "joint_fov60" / "seed0" / "checkpoint.pt").is_file()
+    assert not (runs / "joint_fov60" / "seed0" / "eval.json").exists()
+    assert "checkpoint saved" in (runs / "joint_fov60" / "seed0" / "train.log").read_text()
+    task = sweep.Task(FIG1 / "configs" / "joint_fov60.yaml", 0)
+    assert "--resume" in sweep.train_command(task, task.run_dir(runs), 100000, 100, [])
+
+
+def test_confidence_intervals(aggregate):
+    mean, half = aggregate.mean_ci([1.0, 2.0, 3.0])
+    assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3))
+    assert math.isnan(aggregate.mean_ci([0.5])[1])
+    assert aggregate.t95(12) == aggregate.T95[10]  # between rows: the larger, conservative value
+    curves = [{"frames": np.array([0.0, 10.0]), "v": np.array([0.0, 1.0])},
+              {"frames": np.array([5.0, 20.0]), "v": np.array([1.0, 1.0])}]
+    grid, mean, half = aggregate.seed_band(curves, "v")
+    assert grid[0] == 5.0 and grid[-1] == 10.0  # only where every seed has data
+    assert mean[0] == pytest.approx(0.75) and mean[-1] == pytest.approx(1.0) and half[-1] == 0.0
+
+
+def test_figures_show_the_goal_only_in_the_wide_view(tmp_path):
+    figures = load("figures")
+    from goal_visibility import MIN_PIXELS, goal_pixel_counts
+
+    seed = figures.revealing_seed(limit=20)
+    _, (narrow, wide) = figures.views(seed)
+    assert goal_pixel_counts(narrow[None])[0] < MIN_PIXELS <= goal_pixel_counts(wide[None])[0]
+    paths = figures.save_figures(seed, tmp_path)
+    assert [p.name for p in paths] == ["fig1_map.png", "fig1_obs.png"]
+    assert all(p.stat().st_size > 0 for p in paths)
+    assert sorted(os.listdir(tmp_path)) == ["fig1_map.png", "fig1_obs.png"]  # no temporary file left
