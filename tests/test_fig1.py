@@ -158,3 +158,16 @@ def test_figures_show_the_goal_only_in_the_wide_view(tmp_path):
     assert [p.name for p in paths] == ["fig1_map.png", "fig1_obs.png"]
     assert all(p.stat().st_size > 0 for p in paths)
     assert sorted(os.listdir(tmp_path)) == ["fig1_map.png", "fig1_obs.png"]  # no temporary file left
+
+
+def test_a_second_sweep_on_the_same_runs_is_refused(sweep, tmp_path, capsys):
+    import fcntl
+
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    with open(runs / ".sweep.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(SystemExit):
+            sweep.main(["--only", "joint_fov60", "--seeds", "0", "--runs", str(runs), "--results", str(tmp_path)])
+    assert "another sweep.py is running" in capsys.readouterr().err
+    assert sorted(p.name for p in runs.iterdir()) == [".sweep.lock"]  # nothing was started

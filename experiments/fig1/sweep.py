@@ -12,7 +12,8 @@ success_rate, mean_return; at most 200 rows) and its row is merged into ``RESULT
 
 Resumable: run the same command again and finished runs are skipped, interrupted ones continue from
 their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. Ctrl-C stops
-every run cleanly (each saves its checkpoint first).
+every run cleanly (each saves its checkpoint first), and so does a SIGTERM. Two sweeps cannot run on
+the same ``--runs`` folder at once (a lock file refuses the second).
 
 Cores: the machine's CPUs are split into ``--jobs`` groups of ``--cores-per-job`` (default 1 core per
 run, as many runs at once as cores) and each run is pinned to its group, so its physics threads and its
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import fcntl
 import json
 import os
 import signal
@@ -322,7 +324,18 @@ def main(argv: list[str] | None = None) -> int:
             command = train_command(task, task.run_dir(args.runs), args.frames, args.eval_episodes, extra)
             print(f"{task.label}: {state}: {' '.join(command)}")
         return 0
-    return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+    args.runs.mkdir(parents=True, exist_ok=True)
+    with open(args.runs / ".sweep.lock", "w") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            parser.error(f"another sweep.py is running on {str(args.runs)!r}; wait for it or stop it first")
+        signal.signal(signal.SIGTERM, _terminate)  # a kill stops the runs as Ctrl-C does: none is orphaned
+        return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":
