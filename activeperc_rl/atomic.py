@@ -19,13 +19,15 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 
     The temporary file keeps ``path``'s suffix (writers that pick a format from it still work), is
     flushed to disk before the rename, and is removed if the block raises, leaving ``path`` untouched.
-    ``path``'s folder is created if needed.
+    ``path``'s folder is created if needed. The file gets the permissions a plain ``open`` would give it
+    (the umask's), not the owner-only ones of a temporary file.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
     os.close(handle)
     temporary = Path(name)
+    os.chmod(temporary, 0o666 & ~_umask())
     try:
         yield temporary
         with open(temporary, "rb+") as f:
@@ -34,3 +36,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    """The process's umask (reading it means setting it: it is set straight back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

@@ -23,3 +23,16 @@ def test_atomic_path_leaves_the_old_file_when_the_writer_fails(tmp_path):
         raise KeyboardInterrupt
     assert path.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["checkpoint.pt"]
+
+
+def test_atomic_path_gives_the_umask_permissions(tmp_path):
+    import os
+    import stat
+
+    mask = os.umask(0o027)
+    try:
+        with atomic_path(tmp_path / "eval.json") as temporary:
+            temporary.write_text("{}")
+    finally:
+        os.umask(mask)
+    assert stat.S_IMODE((tmp_path / "eval.json").stat().st_mode) == 0o640  # not the temporary file's 0o600
