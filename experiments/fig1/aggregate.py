@@ -3,9 +3,11 @@
 Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.csv``) and
 
 - draws ``docs/figures/fig1_curves.png``: the training success rate and mean return (each a moving
-  average over the last 100 finished episodes, as ``metrics.csv`` logs them) against frames, one
-  column per field of view, the mean over seeds with a 95 % confidence band (Student's t over seeds;
-  no band with one seed); the dashed grey line is a random mover and looker on the held-out episodes;
+  average over the last 100 finished episodes, as ``metrics.csv`` logs them, from the frame where 100
+  episodes have finished) against frames, one
+  column per field of view, the mean over seeds with a 95 % confidence band (Student's t over seeds,
+  drawn within [0, 1]; no band with one seed); the dashed grey line is a random mover and looker on the
+  held-out episodes, averaged over the seeds;
 - writes the table of final held-out results into ``docs/reproduction.md`` between the markers
   ``<!-- fig1-summary -->`` and ``<!-- /fig1-summary -->`` (and prints it).
 
@@ -39,6 +41,7 @@ from activeperc_rl.atomic import atomic_path  # noqa: E402
 ROOT = HERE.parent.parent
 DOC = ROOT / "docs" / "reproduction.md"
 GRID_POINTS = 100
+FULL_WINDOW = 100  # curves start once this many training episodes have finished: metrics.csv averages the last 100
 # Two-sided 95 % critical values of Student's t by degrees of freedom (standard statistical tables).
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,
        15: 2.131, 20: 2.086, 30: 2.042}
@@ -65,13 +68,16 @@ def mean_ci(values) -> tuple[float, float]:
 
 
 def read_curve(path: Path) -> dict[str, np.ndarray]:
-    """A run's exported curve as arrays, without the first rows where no episode had finished yet (maybe none)."""
+    """A run's exported curve as arrays, from the first row whose average spans ``FULL_WINDOW`` episodes.
+
+    A run too short to finish that many episodes gives empty arrays.
+    """
     with open(path, newline="") as file:
         rows = list(csv.DictReader(file))
     if not rows:
         raise ValueError(f"{path} has no rows")
     columns = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
-    valid = ~np.isnan(columns["success_rate"])
+    valid = columns["episodes"] >= FULL_WINDOW
     return {key: values[valid] for key, values in columns.items()}
 
 
@@ -110,19 +116,22 @@ def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:
             if group_fov != fov:
                 continue
             curves = [read_curve(curves_dir / f"{method}_fov{fov}_seed{r['seed']}.csv") for r in runs]
-            curves = [c for c in curves if c["frames"].size]  # a run too short to finish an episode has no curve
+            curves = [c for c in curves if c["frames"].size]  # runs too short to fill the window have no curve
             if not curves:
                 continue
             for row_index, key in enumerate(("success_rate", "mean_return")):
                 grid, mean, half = seed_band(curves, key)
                 axis = axes[row_index, column]
-                axis.plot(grid, mean, color=colors[method], label=f"{method} ({len(curves)} seeds)")
-                axis.fill_between(grid, mean - half, mean + half, color=colors[method], alpha=0.2)
-        random_rows = [r for runs in groups.values() for r in runs if int(r["fov"]) == fov]
+                seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
+                axis.plot(grid, mean, color=colors[method], label=f"{method} ({seeds})")
+                # both quantities lie in [0, 1]: the band is drawn within it
+                low, high = np.clip(mean - half, 0, 1), np.clip(mean + half, 0, 1)
+                axis.fill_between(grid, low, high, color=colors[method], alpha=0.2)
+        # the random policy's result depends on the seed only (not on the method): one value per seed
+        random_rows = {r["seed"]: r for runs in groups.values() for r in runs if int(r["fov"]) == fov}
         for row_index, key in enumerate(("random_success_rate", "random_return")):
-            axes[row_index, column].axhline(
-                np.mean([float(r[key]) for r in random_rows]), color="grey", linestyle="--", label="random (held-out)"
-            )
+            level = np.mean([float(r[key]) for r in random_rows.values()])
+            axes[row_index, column].axhline(level, color="grey", linestyle="--", label="random (held-out)")
         axes[0, column].set_title(f"horizontal field of view {fov} degrees")
         axes[0, column].set_ylabel("success rate (last 100 episodes)")
         axes[1, column].set_ylabel("mean return (last 100 episodes)")

@@ -5,8 +5,8 @@ Each (config, seed) is one ``activeperc-train`` run in its own process, in ``RUN
 ``configs/NAME_fovF.yaml`` (``configs/ablations/`` with ``--ablations``); every option they do not name
 is the default of ``TrainConfig`` / ``EnvConfig``, and every run gets the same ``--frames``.
 
-When a run has finished, its training curve is exported to ``RESULTS/runs/CONFIG_seedS.csv`` (frames,
-success_rate, mean_return; at most 200 rows) and its row is merged into ``RESULTS/summary.csv``
+When a run has finished, its training curve is exported to ``RESULTS/runs/CONFIG_seedS.csv`` (frames, episodes
+finished so far, success_rate, mean_return; at most 200 rows) and its row is merged into ``RESULTS/summary.csv``
 (``RESULTS/ablations.csv`` for the ablations): the final checkpoint's evaluation on
 ``--eval-episodes`` held-out episodes, beside a uniformly random mover and looker on the same ones.
 
@@ -64,7 +64,8 @@ SUMMARY_COLUMNS = (
     "random_return",
     "train_minutes",
 )
-CURVE_COLUMNS = ("frames", "success_rate", "mean_return")
+CURVE_COLUMNS = ("frames", "episodes", "success_rate", "mean_return")
+"""Columns of an exported curve; ``episodes`` counts the training episodes finished so far."""
 CURVE_ROWS = 200
 POLL_S = 1.0
 
@@ -148,6 +149,9 @@ def export_run(task: Task, run_dir: Path, results: Path) -> dict:
         rows = list(csv.DictReader(file))
     if not rows:
         raise ValueError(f"{run_dir / 'metrics.csv'} has no rows")
+    seen = np.cumsum([int(r["episodes"]) for r in rows])
+    for row, count in zip(rows, seen, strict=True):
+        row["episodes"] = int(count)
     keep = np.unique(np.linspace(0, len(rows) - 1, min(CURVE_ROWS, len(rows))).round().astype(int))
     curve = results / "runs" / f"{task.label}.csv"
     curve.parent.mkdir(parents=True, exist_ok=True)
