@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sweep.py sits next to this file
 
-from sweep import HERE, METHODS, read_summary  # noqa: E402
+from sweep import HERE, method_rank, read_summary  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 
@@ -57,14 +57,20 @@ def t95(dof: int) -> float:
     return T95[max(d for d in T95 if d <= dof)]
 
 
+def ci_half_width(values: np.ndarray) -> np.ndarray:
+    """Half-width of the 95 % confidence interval of the mean over axis 0 (the seeds); ``nan`` for one seed."""
+    seeds = values.shape[0]
+    if seeds == 1:
+        return np.full(values.shape[1:], math.nan)
+    return t95(seeds - 1) * values.std(axis=0, ddof=1) / math.sqrt(seeds)
+
+
 def mean_ci(values) -> tuple[float, float]:
     """Mean and half-width of its 95 % confidence interval over the seeds (``nan`` half-width for one value)."""
     values = np.asarray(values, dtype=float)
     if values.size == 0:
         raise ValueError("mean_ci needs at least one value")
-    if values.size == 1:
-        return float(values[0]), math.nan
-    return float(values.mean()), t95(values.size - 1) * float(values.std(ddof=1)) / math.sqrt(values.size)
+    return float(values.mean()), float(ci_half_width(values))
 
 
 def read_curve(path: Path) -> dict[str, np.ndarray]:
@@ -87,10 +93,7 @@ def group_runs(rows: list[dict]) -> dict[tuple[str, int], list[dict]]:
     for row in rows:
         groups.setdefault((row["method"], int(row["fov"])), []).append(row)
 
-    def order(key):
-        return (METHODS.index(key[0]) if key[0] in METHODS else len(METHODS), key[0], key[1])
-
-    return {key: groups[key] for key in sorted(groups, key=order)}
+    return {key: groups[key] for key in sorted(groups, key=lambda key: (method_rank(key[0]), *key))}
 
 
 def seed_band(curves: list[dict[str, np.ndarray]], key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,10 +102,7 @@ def seed_band(curves: list[dict[str, np.ndarray]], key: str) -> tuple[np.ndarray
     stop = min(c["frames"][-1] for c in curves)
     grid = np.linspace(start, stop, GRID_POINTS)
     values = np.stack([np.interp(grid, c["frames"], c[key]) for c in curves])
-    if len(curves) == 1:
-        return grid, values[0], np.full_like(grid, np.nan)
-    half = t95(len(curves) - 1) * values.std(axis=0, ddof=1) / math.sqrt(len(curves))
-    return grid, values.mean(axis=0), half
+    return grid, values.mean(axis=0), ci_half_width(values)
 
 
 def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:

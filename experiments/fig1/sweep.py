@@ -114,8 +114,7 @@ def find_configs(ablations: bool = False, only: list[str] | None = None, root: P
 
     def order(path: Path) -> tuple:
         task = Task(path, 0)
-        rank = METHODS.index(task.method) if task.method in METHODS else len(METHODS)
-        return rank, task.fov, task.name
+        return method_rank(task.method), task.fov, task.name
 
     paths.sort(key=order)
     if only:
@@ -127,10 +126,15 @@ def find_configs(ablations: bool = False, only: list[str] | None = None, root: P
     return paths
 
 
-def finished_frames(run_dir: Path) -> int | None:
-    """Frames of the run's final evaluation (``eval.json``), or ``None`` when it has none."""
+def is_finished(run_dir: Path, frames: int) -> bool:
+    """Whether the run has its final evaluation (``eval.json``) at ``frames`` frames or more."""
     path = run_dir / "eval.json"
-    return int(json.loads(path.read_text())["frames"]) if path.is_file() else None
+    return path.is_file() and int(json.loads(path.read_text())["frames"]) >= frames
+
+
+def method_rank(method: str) -> int:
+    """Position of ``method`` in :data:`METHODS` (other names, such as the ablations', come after)."""
+    return METHODS.index(method) if method in METHODS else len(METHODS)
 
 
 def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, extra: list[str]) -> list[str]:
@@ -188,7 +192,7 @@ def merge_summary(path: Path, new_rows: list[dict]) -> None:
 
     def order(key):
         method, fov, seed = key
-        return (METHODS.index(method) if method in METHODS else len(METHODS), method, int(fov), int(seed))
+        return method_rank(method), method, int(fov), int(seed)
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as temporary, open(temporary, "w", newline="") as file:
@@ -228,8 +232,7 @@ def run_sweep(
     results = summary.parent
     pending, done_rows = [], []
     for task in tasks:
-        reached = finished_frames(task.run_dir(runs))
-        if reached is not None and reached >= frames:
+        if is_finished(task.run_dir(runs), frames):
             done_rows.append(export_run(task, task.run_dir(runs), results))
         else:
             pending.append(task)
@@ -253,9 +256,8 @@ def run_sweep(
                 del running[slot]
                 free.append(slot)
                 run_dir = task.run_dir(runs)
-                reached = finished_frames(run_dir)
                 minutes = (time.time() - started) / 60
-                if process.returncode == 0 and reached is not None and reached >= frames:
+                if process.returncode == 0 and is_finished(run_dir, frames):
                     row = export_run(task, run_dir, results)
                     merge_summary(summary, [row])
                     print(f"sweep: done {task.label} in {minutes:.1f} min: success {row['final_success_rate']} "
@@ -323,8 +325,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
     if args.dry_run:
         for task in tasks:
-            reached = finished_frames(task.run_dir(args.runs))
-            state = "done" if reached is not None and reached >= args.frames else "to run"
+            state = "done" if is_finished(task.run_dir(args.runs), args.frames) else "to run"
             command = train_command(task, task.run_dir(args.runs), args.frames, args.eval_episodes, extra)
             print(f"{task.label}: {state}: {' '.join(command)}")
         return 0
