@@ -188,3 +188,19 @@ def test_reproduction_doc_quotes_the_committed_results(aggregate):
         assert (ROOT / "docs" / "figures" / figure).stat().st_size > 0
 
 
+
+
+def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        sweep.main(["--seeds", "0", "-1", "--dry-run"])
+    assert "--seeds [0, -1]" in capsys.readouterr().err
+    (tmp_path / "summary.csv").write_text((FIG1 / "results" / "summary.csv").read_text())
+    (tmp_path / "doc.md").write_text("no markers here\n")
+    for doc, message in ((tmp_path / "missing.md", "does not exist"), (tmp_path / "doc.md", "fig1-summary")):
+        with pytest.raises(SystemExit):
+            aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--doc", str(doc)])
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "fig").exists()  # nothing drawn when the table has nowhere to go
+    with pytest.raises(SystemExit):
+        load("figures").main(["--seed", "-3", "--out", str(tmp_path)])
+    assert "--seed=-3" in capsys.readouterr().err

@@ -187,13 +187,19 @@ def main(argv: list[str] | None = None) -> int:
     rows = read_summary(args.results / f"{name}.csv")
     if not rows:
         parser.error(f"no results in {args.results / f'{name}.csv'}: run sweep.py first")
+    table = summary_table(rows)
+    marker = "fig1-ablations" if args.ablations else "fig1-summary"
+    if not args.doc.is_file():
+        parser.error(f"--doc {str(args.doc)!r} does not exist")
+    try:
+        text = replace_between(args.doc.read_text(), marker, table)
+    except ValueError as error:
+        parser.error(f"--doc {str(args.doc)!r}: {error}")
     figure = args.figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
     plot_curves(rows, args.results / "runs", figure)
-    table = summary_table(rows)
     print(table, end="")
-    marker = "fig1-ablations" if args.ablations else "fig1-summary"
     with atomic_path(args.doc) as temporary:
-        temporary.write_text(replace_between(args.doc.read_text(), marker, table))
+        temporary.write_text(text)
     print(f"wrote {figure} and the table in {args.doc}")
     return 0
 

@@ -99,6 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, help="layout seed (default: the first that only 100 degrees reveals)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures", help="output folder")
     args = parser.parse_args(argv)
+    if args.seed is not None and args.seed < 0:
+        parser.error(f"--seed={args.seed} is invalid: expected an int >= 0")
     seed = revealing_seed() if args.seed is None else args.seed
     for path in save_figures(seed, args.out):
         print(f"wrote {path}")

@@ -317,6 +317,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.frames < 1 or args.eval_episodes < 1:
             raise ValueError(f"--frames={args.frames} and --eval-episodes={args.eval_episodes} must be >= 1")
+        if min(args.seeds) < 0:
+            raise ValueError(f"--seeds {args.seeds}: seeds must be >= 0")
         configs = find_configs(args.ablations, args.only)
         groups = core_groups(args.jobs, args.cores_per_job)
     except ValueError as error:
