@@ -80,7 +80,8 @@ class Method:
 
     # ---------------------------------------------------------------- construction helpers
     def _encoder(self):
-        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size).to(self.device)
+        # built on the CPU (the same initial weights on every device); the networks around it move to the device
+        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size)
 
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
@@ -111,6 +112,8 @@ class Method:
         encoder = self._encoder()
         actor = make_actor(encoder, self.config.hidden_size, action_agent or agent, num_actions, reads=agent)
         critic = make_critic(encoder, self.config.hidden_size, agent)
+        actor.to(self.device)
+        critic.to(self.device)
         loss = self._a2c(actor, critic, agent, action_agent)
         self.modules.update({f"{name}_actor": actor, f"{name}_critic": critic})
         self._optimizer(name, [actor, critic], lr)
@@ -347,7 +350,7 @@ class Meta(_MoverA2C):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER)
+        self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER).to(self.device)
         start_holding(self.phi2, config.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)

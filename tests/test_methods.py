@@ -7,7 +7,8 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
-from activeperc_rl.methods import finished_returns, looker_transitions, soft_update
+from activeperc_rl.config import METHODS, TrainConfig
+from activeperc_rl.methods import finished_returns, looker_transitions, make_method, soft_update
 from activeperc_rl.models import (
     EpsilonGreedyLooker,
     FixedLooker,
@@ -217,3 +218,13 @@ def test_updates_run_on_learner_threads():
         method.close()
         torch.set_num_threads(before)
     assert seen == [2, 2]  # both of the mover's A2C steps ('all')
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_network_lands_on_the_device(method):
+    # torch's "meta" device stands in for a GPU: a layer left on the CPU shows up here without one
+    config = TrainConfig(method=method, channels=(8,), hidden_size=16)
+    built = make_method(config, torch.device("meta"), start=False)
+    for name, module in built.modules.items():
+        for key, tensor in [*module.named_parameters(), *module.named_buffers()]:
+            assert tensor.device.type == "meta", (name, key, tensor.device)

@@ -51,6 +51,18 @@ def test_every_method_trains_from_the_cli(tmp_path, method):
     assert any(p.name.startswith("events") for p in (out / "tb").iterdir())
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device: run it on a GPU machine")
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_trains_on_cuda_and_continues_on_the_cpu(tmp_path, method, capsys):
+    out = run_cli(tmp_path, "--method", method, "--frames", "1000", "--device", "cuda", "--seed", "1")
+    assert json.loads((out / "eval.json").read_text())["learned"]["episodes"] == 4
+    assert cli.main(["--out", str(out), "--resume", "--frames", "1500", "--device", "cpu", "--no-progress"]) == 0
+    assert int(read_metrics(out)[-1]["frames"]) >= 1500
+    capsys.readouterr()
+    assert evaluate.main([str(out), "--episodes", "3", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["episodes"] == 3
+
+
 def test_same_seed_same_run(tmp_path):
     runs = [run_cli(tmp_path, "--method", "meta", "--frames", "600", name=f"r{i}") for i in range(2)]
     keep = ("frames", "success_rate", "mean_return", "episodes")
