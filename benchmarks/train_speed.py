@@ -1,7 +1,7 @@
 """Training speed of every method against MiniWorld's raw env speed, measured in one run on this machine.
 
-What it measures (on the CPU, the default :class:`~activeperc_rl.config.TrainConfig` but for the method and
-``--num-envs``):
+What it measures (networks on ``--device``, the CPU by default; the default
+:class:`~activeperc_rl.config.TrainConfig` but for the method and ``--num-envs``):
 
 1. For each method of ``--methods``: training frames/s, collection and learning together. The method is built
    with :func:`~activeperc_rl.methods.make_method`, ``--warmup-iters`` iterations run untimed, then
@@ -45,10 +45,11 @@ GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
     ("issue 4: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
 )
+GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
 
 
-def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: int) -> dict:
-    """Train ``name`` on the CPU for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
+def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: int, device: str = "cpu") -> dict:
+    """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
     The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
     timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
@@ -58,13 +59,14 @@ def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: 
 
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method
+    from activeperc_rl.train import resolve_device
 
-    changes = {"method": name, "device": "cpu"}
+    changes = {"method": name, "device": device}
     if num_envs is not None:
         changes["num_envs"] = num_envs
     config = TrainConfig(**changes)
     torch.manual_seed(config.seed)
-    method = make_method(config, torch.device("cpu"))
+    method = make_method(config, resolve_device(device))
     collect_s = [0.0]
     next_rollout = method._next  # bound method of the library, wrapped on this instance only
 
@@ -119,10 +121,8 @@ def summarise(ours: dict[str, dict], peer: float | None) -> tuple[dict[str, floa
 
 
 def main() -> None:
-    from activeperc_rl.config import TrainConfig
-
     """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
-    from activeperc_rl.config import METHODS
+    from activeperc_rl.config import DEVICES, METHODS, TrainConfig
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -132,6 +132,9 @@ def main() -> None:
     parser.add_argument("--num-envs", type=int, default=None, help="rooms per environment (the TrainConfig default)")
     parser.add_argument(
         "--threads", type=int, default=TrainConfig().torch_threads, help="torch.set_num_threads (default: as training)"
+    )
+    parser.add_argument(
+        "--device", choices=DEVICES, default="cpu", help="where the networks run: cpu (default), cuda, or auto"
     )
     parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations before each timing (2)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
@@ -144,17 +147,24 @@ def main() -> None:
     if args.threads:
         torch.set_num_threads(args.threads)
     machine = env_speed.machine_info()
-    machine |= {"torch": torch.__version__, "torch_threads": torch.get_num_threads()}
+    machine |= {"torch": torch.__version__, "torch_threads": torch.get_num_threads(), "device": args.device}
+    if torch.cuda.is_available():
+        machine["gpu"] = torch.cuda.get_device_name()
     print("activeperc training speed vs MiniWorld")
     cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
     print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
     print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
-    print(f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations, CPU, TrainConfig()")
+    if "gpu" in machine:
+        print(f"         GPU {machine['gpu']}")
+    print(
+        f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
+        f" networks on {args.device}, TrainConfig()"
+    )
     print()
 
     ours: dict[str, dict] = {}
     for name in args.methods:
-        result = ours[name] = bench_method(name, args.num_envs, args.seconds, args.warmup_iters)
+        result = ours[name] = bench_method(name, args.num_envs, args.seconds, args.warmup_iters, args.device)
         collect = result["collect_s"] / result["seconds"]
         detail = (
             f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
@@ -194,6 +204,11 @@ def main() -> None:
         verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
         note = f" (measured on {machine['usable_cpus']} usable CPUs)" if met is not None else ""
         print(f"goal  {goal}: {verdict}{note}")
+
+    if "gpu" in machine and "meta" in ours:
+        met = ours["meta"]["frames_per_s"] >= GPU_GOAL
+        verdict = "MET" if met else "NOT MET"
+        print(f"goal  issue 4: meta >= {GPU_GOAL:,} frames/s on an H100: {verdict} on {machine['gpu']}")
 
     if args.json:
         report = {
