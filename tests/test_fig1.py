@@ -106,6 +106,17 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     frames = [int(r["frames"]) for r in read_csv(runs / "fixed_forward_fov60" / "seed3" / "metrics.csv")]
     assert frames == sorted(frames) and len(set(frames)) == len(frames)
 
+    looker_stats = load("looker_stats")
+    table = tmp_path / "looker.csv"
+    run_dirs = [runs / "meta_eps0.1_fov100" / "seed3", runs / "fixed_forward_fov60" / "seed3"]
+    assert looker_stats.main([*map(str, run_dirs), "--csv", str(table)]) == 0
+    meta, fixed = read_csv(table)
+    assert meta["run"] == "meta_eps0.1_fov100/seed3" and int(meta["frames"]) >= 160
+    assert 0 <= float(meta["pan_rate"]) <= float(meta["max_pan_rate"]) <= 1
+    assert 0 <= float(meta["min_entropy"]) <= float(meta["looker_entropy"]) <= math.log(3) + 1e-6
+    assert meta["phi2"] in ("start", "hold", "pan", "mixed")
+    assert fixed["run"] == "fixed_forward_fov60/seed3" and fixed["pan_rate"] == fixed["phi2"] == ""
+
     monkeypatch.setattr(aggregate, "FULL_WINDOW", 1)  # tiny runs finish a few episodes: draw their curves
     doc = tmp_path / "doc.md"
     doc.write_text("before\n<!-- fig1-summary -->\nold\n<!-- /fig1-summary -->\nafter\n")
@@ -204,3 +215,12 @@ def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
     with pytest.raises(SystemExit):
         load("figures").main(["--seed", "-3", "--out", str(tmp_path)])
     assert "--seed=-3" in capsys.readouterr().err
+
+
+def test_looker_stats_reads_the_untrained_entropy_and_names_bad_runs(tmp_path, capsys):
+    looker_stats = load("looker_stats")
+    assert looker_stats.start_entropy(1 / 3) == pytest.approx(math.log(3))
+    assert looker_stats.start_entropy(0.95) == pytest.approx(0.2332, abs=1e-4)  # the default looker_hold_prob
+    assert looker_stats.main([str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert str(tmp_path) in error and "metrics.csv" in error
