@@ -224,3 +224,12 @@ def test_looker_stats_reads_the_untrained_entropy_and_names_bad_runs(tmp_path, c
     assert looker_stats.main([str(tmp_path)]) == 2
     error = capsys.readouterr().err
     assert str(tmp_path) in error and "metrics.csv" in error
+
+
+@pytest.mark.parametrize(("marker", "table"), [("looker-probe", "looker_probe.csv"), ("looker-sweep", "looker.csv")])
+def test_reproduction_doc_quotes_the_committed_looker_tables(marker, table):
+    looker_stats = load("looker_stats")
+    rows = read_csv(FIG1 / "results" / table)
+    assert rows and list(rows[0]) == list(looker_stats.COLUMNS)
+    doc = (ROOT / "docs" / "reproduction.md").read_text()
+    assert f"<!-- {marker} -->\n{looker_stats.markdown_table(rows)}<!-- /{marker} -->" in doc

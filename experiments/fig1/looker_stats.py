@@ -8,10 +8,14 @@ largest pan rate of the run, the smallest entropy, the pan rate and entropy aver
 iterations, and what phi2 looks like at the end (``phi2``): ``start`` when its entropy is within 0.03 of the
 untrained phi2's (``looker_hold_prob`` of the run's ``config.yaml``: 0.23 nats for the default 0.95),
 ``hold`` or ``pan`` when it is near-deterministic (under 0.05 nats) and its greedy copy phi1 never or does
-pan, ``mixed`` otherwise. Runs of other methods get empty looker columns. ``--csv`` also writes the rows::
+pan, ``mixed`` otherwise. Runs of other methods get empty looker columns.
 
-    python experiments/fig1/looker_stats.py experiments/fig1/runs/meta_eps0.3_fov60/seed*
-    python experiments/fig1/looker_stats.py RUNS/* --csv experiments/fig1/results/looker_probe.csv
+``--csv`` also writes the rows, ``--doc`` writes them as a Markdown table between the markers ``<!-- NAME -->``
+and ``<!-- /NAME -->`` (``--marker NAME``), and ``--from-csv`` reads the rows from such a CSV instead of from
+run folders (from the repository root)::
+
+    python experiments/fig1/looker_stats.py experiments/fig1/runs/meta*/seed* --csv experiments/fig1/results/looker.csv
+    python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv --doc docs/reproduction.md
 """
 
 from __future__ import annotations
@@ -24,7 +28,11 @@ from pathlib import Path
 
 import yaml
 
-from activeperc_rl.atomic import atomic_path
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # aggregate.py sits next to this file
+
+from aggregate import replace_between  # noqa: E402
+
+from activeperc_rl.atomic import atomic_path  # noqa: E402
 
 COLUMNS = ("run", "frames", "success_rate", "max_pan_rate", "min_entropy", "pan_rate", "looker_entropy", "phi2")
 DETERMINISTIC = 0.05  # an entropy under this (nats) is a near-deterministic look
@@ -87,17 +95,49 @@ def _mean(values: list[float]) -> float:
     return sum(values) / len(values)
 
 
+def markdown_table(rows: list[dict]) -> str:
+    """The rows as a Markdown table (runs of other methods show dashes in the looker columns)."""
+    lines = [
+        "| run | frames | success | E1 pan rate, max / end | `phi2` entropy, min / end | `phi2` |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    for row in rows:
+        pan = entropy = "-"
+        if row["phi2"]:
+            pan = f"{float(row['max_pan_rate']):.2f} / {float(row['pan_rate']):.2f}"
+            entropy = f"{float(row['min_entropy']):.2f} / {float(row['looker_entropy']):.2f}"
+        head = f"| {row['run']} | {int(row['frames']):,} | {float(row['success_rate']):.2f}"
+        lines.append(f"{head} | {pan} | {entropy} | {row['phi2'] or '-'} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Print (and with ``--csv`` write) one row per run folder; 2 on bad input."""
+    """Print (and write as asked) one row per run folder, or the rows of ``--from-csv``; 2 on bad input."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", type=Path, metavar="RUN_DIR", help="training run folders")
+    parser.add_argument("runs", nargs="*", type=Path, metavar="RUN_DIR", help="training run folders")
+    parser.add_argument("--from-csv", type=Path, help="read the rows from a CSV this script wrote, not from runs")
     parser.add_argument("--last", type=int, default=20, help="iterations averaged at the end of each run (20)")
     parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
+    parser.add_argument("--doc", type=Path, help="also write the Markdown table into this file, between the markers")
+    parser.add_argument("--marker", default="looker-sweep", help="the markers' name: <!-- NAME --> (looker-sweep)")
     args = parser.parse_args(argv)
     if args.last < 1:
         parser.error(f"--last must be >= 1, got {args.last}")
+    if bool(args.runs) == bool(args.from_csv):
+        parser.error("give run folders or --from-csv, not both")
     try:
-        rows = [run_row(run, args.last) for run in args.runs]
+        if args.from_csv:
+            if not args.from_csv.is_file():
+                raise ValueError(f"--from-csv {str(args.from_csv)!r} does not exist")
+            with open(args.from_csv, newline="") as f:
+                rows = list(csv.DictReader(f))
+        else:
+            rows = [run_row(run, args.last) for run in args.runs]
+        doc = None
+        if args.doc:
+            if not args.doc.is_file():
+                raise ValueError(f"--doc {str(args.doc)!r} does not exist")
+            doc = replace_between(args.doc.read_text(), args.marker, markdown_table(rows))
     except ValueError as error:
         print(f"looker_stats: {error}", file=sys.stderr)
         return 2
@@ -110,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
             writer = csv.DictWriter(f, fieldnames=COLUMNS)
             writer.writeheader()
             writer.writerows(rows)
+    if doc is not None:
+        with atomic_path(args.doc) as tmp:
+            tmp.write_text(doc)
     return 0
 
 
