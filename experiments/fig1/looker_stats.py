@@ -25,14 +25,14 @@ import csv
 import math
 import sys
 from pathlib import Path
-
-import yaml
+from statistics import fmean
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # aggregate.py sits next to this file
 
 from aggregate import replace_between  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
+from activeperc_rl.config import load_yaml  # noqa: E402
 
 COLUMNS = ("run", "frames", "success_rate", "max_pan_rate", "min_entropy", "pan_rate", "looker_entropy", "phi2")
 DETERMINISTIC = 0.05  # an entropy under this (nats) is a near-deterministic look
@@ -73,8 +73,8 @@ def run_row(run_dir: Path, last: int) -> dict:
     scalars = read_scalars(run_dir / "tb", ("meta/e1_pan_rate", "looker/entropy"))
     pans, entropies = scalars["meta/e1_pan_rate"], scalars["looker/entropy"]
     if pans and entropies:
-        pan, entropy = _mean(pans[-last:]), _mean(entropies[-last:])
-        hold_prob = yaml.safe_load((run_dir / "config.yaml").read_text())["looker_hold_prob"]
+        pan, entropy = fmean(pans[-last:]), fmean(entropies[-last:])
+        hold_prob = load_yaml(run_dir / "config.yaml")["looker_hold_prob"]
         if abs(entropy - start_entropy(hold_prob)) <= UNCHANGED:
             phi2 = "start"
         elif entropy < DETERMINISTIC:
@@ -89,10 +89,6 @@ def run_row(run_dir: Path, last: int) -> dict:
             "phi2": phi2,
         }
     return row
-
-
-def _mean(values: list[float]) -> float:
-    return sum(values) / len(values)
 
 
 def markdown_table(rows: list[dict]) -> str:
