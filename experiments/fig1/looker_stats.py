@@ -30,6 +30,7 @@ from statistics import fmean
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # aggregate.py sits next to this file
 
 from aggregate import replace_between  # noqa: E402
+from sweep import read_summary  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 from activeperc_rl.config import load_yaml  # noqa: E402
@@ -125,8 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.from_csv:
             if not args.from_csv.is_file():
                 raise ValueError(f"--from-csv {str(args.from_csv)!r} does not exist")
-            with open(args.from_csv, newline="") as f:
-                rows = list(csv.DictReader(f))
+            rows = read_summary(args.from_csv)
         else:
             rows = [run_row(run, args.last) for run in args.runs]
         doc = None
