@@ -51,7 +51,15 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     return state
 
 
-RESUMABLE = ("frames", "device", "torch_threads", "learner_threads", "checkpoint_every", "eval_episodes")
+RESUMABLE = (
+    "frames",
+    "device",
+    "torch_threads",
+    "learner_threads",
+    "collect_workers",
+    "checkpoint_every",
+    "eval_episodes",
+)
 """Options a resumed run may change; every other one must match the checkpoint's."""
 
 

@@ -50,6 +50,13 @@ class TrainConfig:
     while the networks learn, so the updates may use every core; on 2 cores this cut a meta iteration's learning
     from 725 to 507 ms. The thread count may change float rounding in the updates, so a CPU run repeats exactly
     with the same learner_threads (with the default networks, 1 and 2 threads gave the same runs in our checks)."""
+    collect_workers: int = 0
+    """Worker processes that step each environment's rooms (0: this process steps them). With k > 0, each
+    environment (E1 and E2 each) splits its num_envs rooms over k processes that collect at once, each with CPU
+    copies of the networks refreshed before every rollout (activeperc_rl/workers.py); the networks learn in this
+    process on device. The layouts are those of k = 0; the sampled actions come from the workers' own seeded
+    streams, so a run repeats itself with the same k but differs from a run with another k. Each worker takes
+    several seconds to start; it pays where one process leaves cores idle (docs/performance.md)."""
     gamma: float = 0.99
     """Discount factor of the mover's (and IA2C looker's) A2C."""
     gae_lambda: float = 0.95
@@ -130,6 +137,10 @@ class TrainConfig:
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
             "torch_threads": (_is_int(self.torch_threads) and self.torch_threads >= 0, "an int >= 0"),
             "learner_threads": (_is_int(self.learner_threads) and self.learner_threads >= 0, "an int >= 0"),
+            "collect_workers": (
+                _is_int(self.collect_workers) and _is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
+                f"an int in 0 .. num_envs ({self.num_envs})",
+            ),
             "gamma": (0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
             "gae_lambda": (0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
             "lr": (self.lr > 0, "a number > 0"),

@@ -47,7 +47,8 @@ rendered (PettingZoo ``parallel_env`` semantics). There are no ``("looker", "obs
 
 Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_reset"`` mask, as in
 ``step_and_maybe_reset``, ``rollout`` and ``Collector``). Seeding: :meth:`set_seed` gives room ``i``
-its own stream of episode seeds, derived from the base seed and ``i`` only, so two envs seeded alike
+its own stream of episode seeds, derived from the base seed and ``i`` only (``first_room + i`` when the rooms
+are split over several envs), so two envs seeded alike
 (E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
 in the same layout; ``episode_seeds`` holds each room's current episode seed. Training rooms
 (``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
@@ -73,7 +74,14 @@ SPLITS = ("train", "eval")
 
 
 def make_env(
-    num_envs: int = 1, device="cpu", looker=None, seed: int | None = None, split: str = "train", **env_config
+    num_envs: int = 1,
+    device="cpu",
+    looker=None,
+    seed: int | None = None,
+    split: str = "train",
+    first_room: int = 0,
+    nthread: int = 0,
+    **env_config,
 ):
     """Build the batched TorchRL env over one ``Simulator(num_envs)``.
 
@@ -84,10 +92,19 @@ def make_env(
         seed: base seed of the rooms' layout streams (same as calling ``env.set_seed(seed)``);
             give E1 and E2 the same seed to give them the same reset sequence.
         split: ``"train"`` (even episode seeds) or ``"eval"`` (odd ones): the two never share a layout.
+        first_room: index of this env's first room in a larger env whose rooms are split over several
+            envs (worker processes): room ``i`` here gets the layouts of room ``first_room + i`` there.
+        nthread: physics threads (0: every core this process may use).
         **env_config: any :class:`~activeperc_env.EnvConfig` field.
     """
     env = ActivePerceptionEnv(
-        EnvConfig.from_kwargs(**env_config), num_envs=num_envs, device=device, looker=looker, split=split
+        EnvConfig.from_kwargs(**env_config),
+        num_envs=num_envs,
+        device=device,
+        looker=looker,
+        nthread=nthread,
+        split=split,
+        first_room=first_room,
     )
     if seed is not None:
         env.set_seed(seed)
@@ -104,14 +121,25 @@ class ActivePerceptionEnv(EnvBase):
         looker: the looker module, or ``None`` (external mode).
         nthread: physics threads of the simulator (0: every core).
         split: ``"train"`` or ``"eval"``: the parity of the episode seeds (see the module doc).
+        first_room: index of the first room in the seeding of a larger env split over several (see :func:`make_env`).
     """
 
     def __init__(
-        self, config: EnvConfig, num_envs: int = 1, device="cpu", looker=None, nthread: int = 0, split: str = "train"
+        self,
+        config: EnvConfig,
+        num_envs: int = 1,
+        device="cpu",
+        looker=None,
+        nthread: int = 0,
+        split: str = "train",
+        first_room: int = 0,
     ):
         if split not in SPLITS:
             raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
+        if not isinstance(first_room, int) or first_room < 0:
+            raise ValueError(f"first_room={first_room!r} is invalid: expected an int >= 0")
         super().__init__(device=device, batch_size=[num_envs])
+        self.first_room = first_room
         self.split = split
         self.config = config
         self.num_envs = num_envs
@@ -252,9 +280,11 @@ class ActivePerceptionEnv(EnvBase):
         return out
 
     def _set_seed(self, seed: int | None) -> None:
-        """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(i,))``."""
+        """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(first_room + i,))``."""
         self._seed_rngs = [
-            np.random.default_rng(None if seed is None else np.random.SeedSequence(seed, spawn_key=(i,)))
+            np.random.default_rng(
+                None if seed is None else np.random.SeedSequence(seed, spawn_key=(self.first_room + i,))
+            )
             for i in range(self.num_envs)
         ]
 

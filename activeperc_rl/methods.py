@@ -46,6 +46,7 @@ from activeperc_rl.models import (
     make_joint_policy,
     start_holding,
 )
+from activeperc_rl.workers import ProcessCollector
 
 
 @dataclass
@@ -73,7 +74,7 @@ class Method:
         self.device = device
         self.collect = collect
         self.env_seed = config.seed
-        self.collectors: list[Collector] = []
+        self.collectors: list[Collector | ProcessCollector] = []
         self._iterators: dict[int, object] = {}
         self.modules: dict[str, nn.Module] = {}
         self.optimizers: dict[str, torch.optim.Optimizer] = {}
@@ -119,19 +120,36 @@ class Method:
         self._optimizer(name, [actor, critic], lr)
         return actor, critic, loss
 
-    def _collector(self, policy, looker=None, seed_offset: int = 0, **env_overrides) -> Collector:
+    def _collector(self, policy, looker=None, seed_offset: int = 0, **env_overrides) -> Collector | ProcessCollector:
+        """A collector of rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), in this
+        process or split over ``collect_workers`` processes."""
         cfg = self.config
         env_config = dataclasses.asdict(cfg.env) | env_overrides
-        env = make_env(cfg.num_envs, device=self.device, looker=looker, **env_config)
-        env.set_seed(self.env_seed + seed_offset)
-        collector = Collector(
-            env,
-            policy,
-            frames_per_batch=cfg.num_envs * cfg.rollout_length,
-            total_frames=-1,
-            device=self.device,
-            auto_register_policy_transforms=False,
-        )
+        env_seed = self.env_seed + seed_offset
+        if cfg.collect_workers:
+            # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
+            entropy = [self.env_seed, len(self.collectors)]
+            collector = ProcessCollector(
+                policy,
+                looker,
+                env_config,
+                cfg.num_envs,
+                cfg.rollout_length,
+                cfg.collect_workers,
+                env_seed=env_seed,
+                torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),
+                device=self.device,
+            )
+        else:
+            env = make_env(cfg.num_envs, device=self.device, looker=looker, seed=env_seed, **env_config)
+            collector = Collector(
+                env,
+                policy,
+                frames_per_batch=cfg.num_envs * cfg.rollout_length,
+                total_frames=-1,
+                device=self.device,
+                auto_register_policy_transforms=False,
+            )
         self.collectors.append(collector)
         self._iterators[id(collector)] = iter(collector)
         return collector
@@ -314,16 +332,18 @@ class Curriculum(Joint):
 
     def start(self) -> None:
         """Build the environment of the current phase."""
-        self.collector = self._collector(self.joint_policy, **self._phase())
+        self.phase = self._phase()
+        self.collector = self._collector(self.joint_policy, **self.phase)
 
     def iterate(self) -> Iteration:
         """One joint iteration; switches to the obstacle room once the pre-training frames are spent."""
-        if self.collector.env.config != dataclasses.replace(self.config.env, **self._phase()):
+        if self.phase != self._phase():
             self.close()
             self.start()
         iteration = super().iterate()
         self.frames += iteration.frames
-        iteration.losses["curriculum/obstacles"] = float(self.collector.env.config.num_obstacles)
+        obstacles = self.phase.get("num_obstacles", self.config.env.num_obstacles)
+        iteration.losses["curriculum/obstacles"] = float(obstacles)
         return iteration
 
     def state_dict(self) -> dict:

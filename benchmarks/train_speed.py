@@ -25,6 +25,7 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip
     python benchmarks/train_speed.py                      # 20 s per method
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
     python benchmarks/train_speed.py --seconds 5 --json
+    python benchmarks/train_speed.py --methods meta --collect-workers 2   # collection in 2 processes per env
 """
 
 from __future__ import annotations
@@ -48,8 +49,13 @@ GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
 GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
 
 
-def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: int, device: str = "cpu") -> dict:
+def bench_method(
+    name: str, num_envs: int | None, seconds: float, warmup_iters: int, device: str = "cpu", collect_workers: int = 0
+) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
+
+    ``collect_workers`` is :attr:`TrainConfig.collect_workers` (worker processes per environment; their start is
+    not timed).
 
     The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
     timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
@@ -61,7 +67,7 @@ def bench_method(name: str, num_envs: int | None, seconds: float, warmup_iters: 
     from activeperc_rl.methods import make_method
     from activeperc_rl.train import resolve_device
 
-    changes = {"method": name, "device": device}
+    changes = {"method": name, "device": device, "collect_workers": collect_workers}
     if num_envs is not None:
         changes["num_envs"] = num_envs
     config = TrainConfig(**changes)
@@ -136,6 +142,9 @@ def main() -> None:
     parser.add_argument(
         "--device", choices=DEVICES, default="cpu", help="where the networks run: cpu (default), cuda, or auto"
     )
+    parser.add_argument(
+        "--collect-workers", type=int, default=0, help="worker processes per env (TrainConfig.collect_workers, 0)"
+    )
     parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations before each timing (2)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args()
@@ -158,13 +167,15 @@ def main() -> None:
         print(f"         GPU {machine['gpu']}")
     print(
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
-        f" networks on {args.device}, TrainConfig()"
+        f" networks on {args.device}, TrainConfig(collect_workers={args.collect_workers})"
     )
     print()
 
     ours: dict[str, dict] = {}
     for name in args.methods:
-        result = ours[name] = bench_method(name, args.num_envs, args.seconds, args.warmup_iters, args.device)
+        result = ours[name] = bench_method(
+            name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers
+        )
         collect = result["collect_s"] / result["seconds"]
         detail = (
             f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"

@@ -1,0 +1,121 @@
+"""Collection in worker processes (``collect_workers``): same layouts, current weights, repeatable, clean stops."""
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import torch
+from tensordict.nn import TensorDictSequential
+from test_train import TINY, read_metrics, run_cli
+from torch import nn
+
+from activeperc_env import EnvConfig
+from activeperc_rl import cli
+from activeperc_rl.checkpoint import load_checkpoint
+from activeperc_rl.envs import make_env
+from activeperc_rl.models import FixedLooker, make_actor, make_encoder
+from activeperc_rl.workers import ProcessCollector
+
+SMALL = EnvConfig(max_cycles=6)
+
+
+def mover_that_always_picks(action: int):
+    """A mover actor whose output layer ignores the image and makes ``action`` all but certain."""
+    actor = make_actor(make_encoder(SMALL, (4,), 8), 8, "mover")
+    pick(actor, action)
+    return actor
+
+
+def pick(actor, action: int) -> None:
+    out = actor[0].module.out
+    with torch.no_grad():
+        out.weight.zero_()
+        out.bias.fill_(-50.0)
+        out.bias[action] = 50.0
+
+
+def survivors(session: int, wait_s: float = 20.0) -> list[str]:
+    """Command lines of the processes left in ``session`` after up to ``wait_s`` seconds."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        ps = subprocess.run(["ps", "-e", "-o", "sid=,args="], capture_output=True, text=True).stdout.splitlines()
+        left = [line for line in ps if line.split()[0] == str(session)]
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.5)
+
+
+class FailingLooker(nn.Module):
+    def forward(self, tensordict):
+        raise ArithmeticError("this looker always fails")
+
+
+def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights():
+    actor = mover_that_always_picks(2)
+    policy = TensorDictSequential(actor, FixedLooker())
+    config = dataclasses.asdict(SMALL)
+    collector = ProcessCollector(policy, None, config, 5, rollout_length=4, workers=2, env_seed=7, torch_seed=0)
+    try:
+        first = next(collector)
+        pick(actor, 0)  # the workers must see this change before the next rollout
+        second = next(collector)
+    finally:
+        collector.shutdown()
+    assert first.batch_size == second.batch_size == torch.Size([5, 4])
+    assert (first["mover", "action"] == 2).all() and (second["mover", "action"] == 0).all()
+    # room i of the split env starts in the layout of room i of one env of all five rooms
+    reference = make_env(5, seed=7, **dataclasses.asdict(SMALL)).reset()
+    assert torch.equal(first["mover", "observation", "image"][:, 0], reference["mover", "observation", "image"])
+    # trajectory ids stay unique across the workers' rooms
+    ids = first["collector", "traj_ids"][:, 0]
+    assert len(set(ids.tolist())) == 5
+
+
+def test_a_failing_worker_is_reported_with_its_error():
+    with pytest.raises(RuntimeError, match="collector worker 0 failed(.|\n)*this looker always fails"):
+        ProcessCollector(
+            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 2, 4, 1, env_seed=0, torch_seed=0
+        )
+
+
+def test_training_with_workers_repeats_itself(tmp_path):
+    runs = [
+        run_cli(tmp_path, "--method", "meta", "--frames", "300", "--collect-workers", "2", name=f"r{i}")
+        for i in range(2)
+    ]
+    keep = ("frames", "success_rate", "mean_return", "episodes")
+    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in runs)
+    assert a == b and int(a[-1]["frames"]) >= 300
+    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in runs)
+    for name in sa:
+        for key, value in sa[name].items():
+            assert torch.equal(value, sb[name][key]), (name, key)
+
+
+def test_ctrl_c_in_the_terminal_stops_the_workers_and_saves(tmp_path):
+    """SIGINT to the whole process group (as a terminal's Ctrl-C) across curriculum's switch of environments."""
+    out = tmp_path / "run"
+    command = [
+        sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
+        "--method", "curriculum", "--curriculum-fraction", "0.00003", "--collect-workers", "2",
+    ]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
+    )
+    deadline = time.monotonic() + 240
+    rows = []
+    while time.monotonic() < deadline and len(rows) < 12:  # the switch to obstacles comes after 10 rows
+        time.sleep(0.5)
+        rows = read_metrics(out) if (out / "metrics.csv").exists() else []
+    os.killpg(process.pid, signal.SIGINT)
+    output, _ = process.communicate(timeout=120)
+    assert process.returncode == 0, output
+    assert "checkpoint saved" in output
+    assert load_checkpoint(out / "checkpoint.pt")["frames"] == int(read_metrics(out)[-1]["frames"]) >= 12 * 32
+    assert not survivors(process.pid), "a worker outlived the run"
+    target = str(load_checkpoint(out / "checkpoint.pt")["frames"] + 64)
+    assert cli.main(["--out", str(out), "--resume", "--frames", target, "--no-progress", "--eval-episodes", "0"]) == 0
