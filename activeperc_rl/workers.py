@@ -117,8 +117,12 @@ class ProcessCollector:
             there.close()
             self._conns.append(here)
             self._processes.append(process)
-        for k in range(workers):
-            self._receive(k, "ready", timeout=START_TIMEOUT_S)
+        try:
+            for k in range(workers):
+                self._receive(k, "ready", timeout=START_TIMEOUT_S)
+        except BaseException:
+            self.shutdown()  # no worker outlives a failed start
+            raise
 
     def __iter__(self) -> ProcessCollector:
         return self

@@ -1,6 +1,7 @@
 """Collection in worker processes (``collect_workers``): same layouts, current weights, repeatable, clean stops."""
 
 import dataclasses
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -50,8 +51,12 @@ def survivors(session: int, wait_s: float = 20.0) -> list[str]:
 
 
 class FailingLooker(nn.Module):
+    """Fails in an env of two rooms, holds the camera in any other."""
+
     def forward(self, tensordict):
-        raise ArithmeticError("this looker always fails")
+        if tensordict.batch_size[0] == 2:
+            raise ArithmeticError("this looker fails with two rooms")
+        return FixedLooker()(tensordict)
 
 
 def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights():
@@ -75,11 +80,13 @@ def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_we
     assert len(set(ids.tolist())) == 5
 
 
-def test_a_failing_worker_is_reported_with_its_error():
-    with pytest.raises(RuntimeError, match="collector worker 0 failed(.|\n)*this looker always fails"):
+def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
+    # 3 rooms over 2 workers: worker 0 holds 2 rooms and fails, worker 1 holds 1 and starts fine
+    with pytest.raises(RuntimeError, match="collector worker 0 failed(.|\n)*this looker fails with two rooms"):
         ProcessCollector(
-            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 2, 4, 1, env_seed=0, torch_seed=0
+            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 3, 4, 2, env_seed=0, torch_seed=0
         )
+    assert multiprocessing.active_children() == []
 
 
 def test_training_with_workers_repeats_itself(tmp_path):
