@@ -73,6 +73,9 @@ class Simulator:
         self._mocap_pos = self._batch.bind("mocap_pos")
         self._ids = _Ids(self.model)
         self._renderer: TiledRenderer | None = None
+        self._views: np.ndarray | None = None  # the latest first-person view of every room
+        self._fresh = np.zeros(num_envs, dtype=bool)  # rooms whose view in _views shows their current state
+        self._tiles = np.full(num_envs, -1)  # where in the offscreen buffer each view in _views was drawn
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
         self.seeds = np.zeros(num_envs, dtype=np.int64)
@@ -116,6 +119,7 @@ class Simulator:
         self._ctrl[ids] = 0.0
         self.cycle[ids] = 0
         self.done[ids] = False
+        self._fresh[ids] = False
 
     def move(self, actions, ids=None) -> MoveResult:
         """The mover's half of a cycle: drive the wheels for one control period.
@@ -132,6 +136,7 @@ class Simulator:
         ctrl[:, self._ids.wheels] = self._wheel_targets[actions]
         self._ctrl[ids] = ctrl
         self._batch.step(ids, nstep=self.substeps)
+        self._fresh[ids] = False
         # a stiff servo holds the pan joint while the base moves; its residual error (about
         # 1e-5 rad) would accumulate over an episode, so the joint returns to its command
         self._qpos[ids, self._ids.pan] = self._ctrl[ids, self._ids.pan_ctrl]
@@ -155,17 +160,37 @@ class Simulator:
         """
         ids = self._as_ids(ids)
         actions = _check_actions(actions, ids, LOOKER_ACTIONS, "looker")
-        pan = self._qpos[ids, self._ids.pan] + self._pan_deltas[actions]
-        pan = np.clip(pan, -self._pan_limit, self._pan_limit).astype(np.float32)
+        before = self._qpos[ids, self._ids.pan]
+        pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
+        self._fresh[ids[pan != before]] = False  # a hold, or a pan against the limit, leaves the view as it was
         self._qpos[ids, self._ids.pan] = pan
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self._ctrl[ids, self._ids.pan_ctrl] = pan
 
     # ----------------------------------------------------------------- observations
     def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:
-        """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8."""
+        """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8.
+
+        When no room of the call changed since its view was drawn at the same place of the offscreen
+        buffer, the last views are given again without drawing: they are the very pixels a new render
+        would give. A look that leaves the camera where it was ('hold', or a pan against the limit) changes
+        nothing, so a cycle in which every room's looker holds costs one render instead of two.
+        """
         ids = self._as_ids(ids)
-        return self.renderer.render(self._qpos[ids], self._mocap_pos[ids], out)
+        tiles = np.arange(len(ids)) % self.renderer.views_per_pass  # where each view is drawn in the buffer
+        if self._views is None:
+            cfg = self.config
+            self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
+        # the rasteriser may shade a pixel one level differently at another place in the buffer: reuse a
+        # view only where it was drawn at the same place, so that reusing never changes a pixel
+        if not (self._fresh[ids].all() and (self._tiles[ids] == tiles).all()):
+            self._views[ids] = self.renderer.render(self._qpos[ids], self._mocap_pos[ids])
+            self._fresh[ids] = True
+            self._tiles[ids] = tiles
+        if out is None:
+            return self._views[ids]  # a copy: callers may keep or change it
+        out[...] = self._views[ids]
+        return out
 
     def pan(self, ids=None) -> np.ndarray:
         """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""

@@ -59,6 +59,11 @@ class TiledRenderer:
         self._map = _fixed_camera(model, names.MAP_CAMERA)
         self._pixels = np.empty(buf_h * buf_w * 3, dtype=np.uint8)  # read-back buffer
 
+    @property
+    def views_per_pass(self) -> int:
+        """Views drawn before one read-back: view ``k`` of a call lands in tile ``k % views_per_pass``."""
+        return self.cols * self.rows
+
     def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """First-person views of the simulations whose states are given.
 
@@ -74,7 +79,7 @@ class TiledRenderer:
         if out is None:
             out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
         self._gl.make_current()
-        per_pass = self.cols * self.rows
+        per_pass = self.views_per_pass
         for first in range(0, n, per_pass):
             count = min(per_pass, n - first)
             for k in range(count):

@@ -182,3 +182,53 @@ def test_empty_id_list_is_a_no_op():
     assert sim.render(ids=[]).shape == (0, 60, 80, 3)
     assert sim.pan(ids=[]).shape == (0, 1)
     assert sim.move([], ids=[]).reward.shape == (0,)
+
+
+def _count_drawn_views(sim):
+    """Wrap ``sim.renderer.render`` to count the views it draws; returns the list of counts per call."""
+    calls, draw = [], sim.renderer.render
+
+    def counting(qpos, mocap_pos, out=None):
+        calls.append(len(qpos))
+        return draw(qpos, mocap_pos, out)
+
+    sim.renderer.render = counting
+    return calls
+
+
+def test_views_are_drawn_again_only_when_a_room_changed():
+    sim = Simulator(EnvConfig(), num_envs=3)
+    sim.reset(seeds=[1, 2, 3])
+    calls = _count_drawn_views(sim)
+    first = sim.render()
+    assert calls == [3]
+    sim.look([1, 1, 1])  # every looker holds: nothing changed
+    assert np.array_equal(sim.render(), first) and calls == [3]
+    sim.look([1, 0, 1])  # one pan: the whole call is drawn again
+    sim.render()
+    assert calls == [3, 3]
+    sim.move([2, 2, 2])
+    sim.render()
+    assert calls == [3, 3, 3]
+    sim.render([2])  # room 2 drawn at another place of the buffer: drawn again there
+    sim.render([2])
+    assert calls == [3, 3, 3, 1]
+    image = sim.render()
+    image[:] = 0  # the caller's copy
+    assert sim.render().any()
+
+
+def test_reused_views_are_the_pixels_of_a_new_render():
+    sim = Simulator(EnvConfig(pan_range=60), num_envs=4)
+    sim.reset(seeds=[5, 6, 7, 8])
+    rng = np.random.default_rng(0)
+    for _ in range(30):  # holds, pans, pans against the limit, moves
+        if rng.random() < 0.5:
+            sim.move(rng.integers(0, 3, 4))
+        else:
+            sim.look(rng.choice([0, 1, 1, 1, 2], 4))
+        data = [sim.physics_data(i) for i in range(4)]
+        fresh = sim.renderer.render(np.stack([d.qpos for d in data]), np.stack([d.mocap_pos for d in data]))
+        assert np.array_equal(sim.render(), fresh)
+        if sim.done.any():
+            sim.reset(np.flatnonzero(sim.done))
