@@ -171,22 +171,32 @@ class Simulator:
     def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:
         """First-person camera images of the rooms ``ids``: (n, height, width, 3) uint8.
 
-        When no room of the call changed since its view was drawn at the same place of the offscreen
-        buffer, the last views are given again without drawing: they are the very pixels a new render
+        Only the rooms that changed since their view was drawn (in the tile of the offscreen buffer this
+        call draws them in) are drawn again; the others get their last view, the very pixels a new render
         would give. A look that leaves the camera where it was ('hold', or a pan against the limit) changes
-        nothing, so a cycle in which every room's looker holds costs one render instead of two.
+        nothing, so in a cycle the looker's view ``s_bar`` is drawn for every room and the mover's ``s'``
+        only for the rooms whose camera turned.
         """
         ids = self._as_ids(ids)
-        tiles = np.arange(len(ids)) % self.renderer.views_per_pass  # where each view is drawn in the buffer
+        per_pass = self.renderer.views_per_pass
+        tiles = np.arange(len(ids)) % per_pass  # where each view is drawn in the offscreen buffer
         if self._views is None:
             cfg = self.config
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
-        # the rasteriser may shade a pixel one level differently at another place in the buffer: reuse a
-        # view only where it was drawn at the same place, so that reusing never changes a pixel
-        if not (self._fresh[ids].all() and (self._tiles[ids] == tiles).all()):
-            self._views[ids] = self.renderer.render(self._qpos[ids], self._mocap_pos[ids])
-            self._fresh[ids] = True
-            self._tiles[ids] = tiles
+        # the rasteriser may shade a pixel one level differently in another tile: a view is reused only where
+        # it was drawn in the tile this call would draw it in, and a stale one is drawn again in that tile
+        stale = ~(self._fresh[ids] & (self._tiles[ids] == tiles))
+        if stale.any():
+            if stale.all() or len(ids) > per_pass or len(np.unique(ids)) < len(ids):
+                stale[:] = True
+                self._views[ids] = self.renderer.render(self._qpos[ids], self._mocap_pos[ids])
+            else:
+                redraw = ids[stale]
+                self._views[redraw] = self.renderer.render(
+                    self._qpos[redraw], self._mocap_pos[redraw], tiles=tiles[stale]
+                )
+            self._fresh[ids[stale]] = True
+            self._tiles[ids[stale]] = tiles[stale]
         if out is None:
             return self._views[ids]  # a copy: callers may keep or change it
         out[...] = self._views[ids]

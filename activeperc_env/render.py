@@ -64,13 +64,18 @@ class TiledRenderer:
         """Views drawn before one read-back: view ``k`` of a call lands in tile ``k % views_per_pass``."""
         return self.cols * self.rows
 
-    def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def render(
+        self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray | None = None, tiles: np.ndarray | None = None
+    ) -> np.ndarray:
         """First-person views of the simulations whose states are given.
 
         Args:
             qpos: (n, nq) joint positions.
             mocap_pos: (n, nmocap, 3) positions of the goal and occluders.
             out: optional (n, height, width, 3) uint8 array to write into.
+            tiles: optional (n,) distinct tiles (below ``views_per_pass``) to draw the views in, all in one
+                pass; by default view ``k`` is drawn in tile ``k % views_per_pass``. The rasteriser may shade
+                a pixel one level differently in another tile, so the tile is part of what a view looks like.
 
         Returns:
             (n, height, width, 3) uint8 images, top row first.
@@ -80,27 +85,39 @@ class TiledRenderer:
             out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
         self._gl.make_current()
         per_pass = self.views_per_pass
-        for first in range(0, n, per_pass):
-            count = min(per_pass, n - first)
-            for k in range(count):
-                self._pose(qpos[first + k], mocap_pos[first + k])
-                mujoco.mjv_updateScene(
-                    self._model, self._data, self._eye_opt, None, self._eye,
-                    mujoco.mjtCatBit.mjCAT_ALL, self._scene,
-                )
-                row, col = divmod(k, self.cols)
-                rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
-                mujoco.mjr_render(rect, self._scene, self._ctx)
-            used_rows = math.ceil(count / self.cols)
-            used_cols = self.cols if used_rows > 1 else count
-            area = mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
-            pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
-            mujoco.mjr_readPixels(pixels, None, area, self._ctx)
-            # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom
-            tiles = pixels.reshape(used_rows, self.height, used_cols, self.width, 3)
-            tiles = tiles[:, ::-1].transpose(0, 2, 1, 3, 4).reshape(-1, self.height, self.width, 3)
-            out[first : first + count] = tiles[:count]
+        if tiles is None:
+            for first in range(0, n, per_pass):
+                views = np.arange(first, min(n, first + per_pass))
+                self._draw(qpos, mocap_pos, views, views - first, out)
+        elif n:
+            tiles = np.asarray(tiles, dtype=np.int64)
+            if tiles.shape != (n,) or tiles.min() < 0 or tiles.max() >= per_pass or len(np.unique(tiles)) != n:
+                raise ValueError(f"tiles {tiles.tolist()} invalid: expected {n} distinct tiles in 0 .. {per_pass - 1}")
+            self._draw(qpos, mocap_pos, np.arange(n), tiles, out)
         return out
+
+    def _draw(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, out: np.ndarray) -> None:
+        """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer, read back once, fill ``out[views]``."""
+        for view, tile in zip(views, tiles, strict=True):
+            self._pose(qpos[view], mocap_pos[view])
+            mujoco.mjv_updateScene(
+                self._model, self._data, self._eye_opt, None, self._eye,
+                mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+            )
+            row, col = divmod(int(tile), self.cols)
+            rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
+            mujoco.mjr_render(rect, self._scene, self._ctx)
+        top = int(tiles.max())
+        used_rows = top // self.cols + 1
+        used_cols = self.cols if used_rows > 1 else top + 1
+        area = mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
+        pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
+        mujoco.mjr_readPixels(pixels, None, area, self._ctx)
+        # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom; in the
+        # read area, tile t is then grid[t]
+        grid = pixels.reshape(used_rows, self.height, used_cols, self.width, 3)
+        grid = grid[:, ::-1].transpose(0, 2, 1, 3, 4).reshape(-1, self.height, self.width, 3)
+        out[views] = grid[tiles]
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray, fov: float) -> np.ndarray:
         """Bird's-eye map of one simulation, with the camera's view cone drawn in.

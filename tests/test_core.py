@@ -188,15 +188,15 @@ def _count_drawn_views(sim):
     """Wrap ``sim.renderer.render`` to count the views it draws; returns the list of counts per call."""
     calls, draw = [], sim.renderer.render
 
-    def counting(qpos, mocap_pos, out=None):
+    def counting(qpos, mocap_pos, out=None, tiles=None):
         calls.append(len(qpos))
-        return draw(qpos, mocap_pos, out)
+        return draw(qpos, mocap_pos, out, tiles)
 
     sim.renderer.render = counting
     return calls
 
 
-def test_views_are_drawn_again_only_when_a_room_changed():
+def test_views_are_drawn_again_only_for_the_rooms_that_changed():
     sim = Simulator(EnvConfig(), num_envs=3)
     sim.reset(seeds=[1, 2, 3])
     calls = _count_drawn_views(sim)
@@ -204,18 +204,21 @@ def test_views_are_drawn_again_only_when_a_room_changed():
     assert calls == [3]
     sim.look([1, 1, 1])  # every looker holds: nothing changed
     assert np.array_equal(sim.render(), first) and calls == [3]
-    sim.look([1, 0, 1])  # one pan: the whole call is drawn again
+    sim.look([1, 0, 1])  # one camera turns
     sim.render()
-    assert calls == [3, 3]
+    assert calls == [3, 1]
     sim.move([2, 2, 2])
     sim.render()
-    assert calls == [3, 3, 3]
-    sim.render([2])  # room 2 drawn at another place of the buffer: drawn again there
+    assert calls == [3, 1, 3]
+    sim.render([2])  # room 2 alone goes to the buffer's first tile, not its own: drawn again there
     sim.render([2])
-    assert calls == [3, 3, 3, 1]
+    sim.render()  # and back in its own tile
+    assert calls == [3, 1, 3, 1, 1]
     image = sim.render()
     image[:] = 0  # the caller's copy
     assert sim.render().any()
+    with pytest.raises(ValueError, match="tiles"):
+        sim.renderer.render(np.zeros((2, sim.model.nq)), np.zeros((2, sim.model.nmocap, 3)), tiles=[0, 0])
 
 
 def test_reused_views_are_the_pixels_of_a_new_render():
