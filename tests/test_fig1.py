@@ -183,12 +183,26 @@ def test_a_second_sweep_on_the_same_runs_is_refused(sweep, tmp_path, capsys):
             sweep.main(["--only", "joint_fov60", "--seeds", "0", "--runs", str(runs), "--results", str(tmp_path)])
     assert "another sweep.py is running" in capsys.readouterr().err
     assert sorted(p.name for p in runs.iterdir()) == [".sweep.lock"]  # nothing was started
+def test_ablations_are_listed_after_the_runs_of_the_config_they_change(aggregate):
+    summary = [
+        {"method": "meta_eps0.3", "fov": "60", "seed": "0"},
+        {"method": "meta_eps0.3", "fov": "100", "seed": "0"},  # another fov
+        {"method": "meta_eps0.1", "fov": "60", "seed": "0"},  # another config
+        {"method": "meta_eps0.3", "fov": "60", "seed": "5"},  # a seed the ablations lack
+    ]
+    ablations = [{"method": "meta_eps0.3_alpha0.2", "fov": "60", "seed": "0"}]
+    assert aggregate.with_reference(ablations, summary) == [summary[0], ablations[0]]
+
+
 def test_reproduction_doc_quotes_the_committed_results(aggregate):
     for name, marker in (("summary", "fig1-summary"), ("ablations", "fig1-ablations")):
         path = FIG1 / "results" / f"{name}.csv"
         if not path.exists():
             continue
-        table = aggregate.summary_table(read_csv(path))
+        rows = read_csv(path)
+        if name == "ablations":
+            rows = aggregate.with_reference(rows, read_csv(FIG1 / "results" / "summary.csv"))
+        table = aggregate.summary_table(rows)
         text = (ROOT / "docs" / "reproduction.md").read_text()
         assert f"<!-- {marker} -->\n{table}<!-- /{marker} -->" in text, f"run experiments/fig1/aggregate.py for {name}"
     rows = read_csv(FIG1 / "results" / "summary.csv")

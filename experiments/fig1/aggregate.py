@@ -12,7 +12,8 @@ Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.c
   ``<!-- fig1-summary -->`` and ``<!-- /fig1-summary -->`` (and prints it).
 
 ``--ablations`` does the same for ``results/ablations.csv`` (figure ``fig1_ablations.png``, markers
-``fig1-ablations``). Run from anywhere::
+``fig1-ablations``), with the runs of the config each ablation changes (``meta_eps0.3`` at 60 degrees, from
+``summary.csv``) drawn and listed first for reference. Run from anywhere::
 
     python experiments/fig1/aggregate.py
     python experiments/fig1/aggregate.py --ablations
@@ -144,6 +145,22 @@ def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:
     plt.close(figure)
 
 
+def with_reference(ablations: list[dict], summary: list[dict]) -> list[dict]:
+    """``ablations`` preceded by the runs of ``summary`` they change one option of.
+
+    Ablation ``METHOD_CHANGE`` at a field of view changes the main config ``METHOD`` at that field of view (the
+    longest such method name wins): its rows with the ablations' seeds come first.
+    """
+    main = {r["method"] for r in summary}
+    bases = set()
+    for row in ablations:
+        prefixes = [m for m in main if row["method"].startswith(m + "_")]
+        if prefixes:
+            bases.add((max(prefixes, key=len), row["fov"]))
+    seeds = {r["seed"] for r in ablations}
+    return [r for r in summary if (r["method"], r["fov"]) in bases and r["seed"] in seeds] + ablations
+
+
 def summary_table(rows: list[dict]) -> str:
     """The Markdown table of final held-out results: mean and 95 % interval over seeds per (method, fov)."""
 
@@ -187,6 +204,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = read_summary(args.results / f"{name}.csv")
     if not rows:
         parser.error(f"no results in {args.results / f'{name}.csv'}: run sweep.py first")
+    if args.ablations:
+        rows = with_reference(rows, read_summary(args.results / "summary.csv"))
     table = summary_table(rows)
     marker = "fig1-ablations" if args.ablations else "fig1-summary"
     if not args.doc.is_file():
