@@ -7,7 +7,8 @@ seconds):
    stepped as training steps it, ``env.step_and_maybe_reset`` with the mover's action from
    ``RandomPolicy(("mover",))``, so finished rooms are restarted by TorchRL's auto-reset. The figure is
    cycles/s summed over the N rooms; one cycle is the mover's move, the render of ``s_bar``, the looker's
-   look and the render of ``s'`` (two renders, as in training's looker mode).
+   look and the render of ``s'`` (as in training's looker mode; ``s'`` is drawn only for the rooms whose camera
+   the random look turned, the others reuse ``s_bar``).
 2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
    each), measured by ``benchmarks/env_speed.py``'s own function, in a child process, in this same run
    (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld

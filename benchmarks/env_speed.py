@@ -3,10 +3,11 @@
 What it measures (random actions throughout, each figure timed for ``--seconds`` after a warm-up):
 
 1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's step and
-   the looker's step (each renders one 80x60 observation); the env is reset when an episode ends.
+   the looker's step (each gives one 80x60 observation; the mover's is drawn only when the random look
+   turned the camera, otherwise it is the looker's view again); the env is reset when an episode ends.
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
-   over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (two renders), then
-   resetting and rendering the rooms that are done.
+   over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
+   only the rooms whose camera turned), then resetting and rendering the rooms that are done.
 3. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
    (one render each), reset when an episode ends. It runs in a child process so that a GL failure
    there cannot stop our measurements; if it cannot run, the reason is printed instead.
