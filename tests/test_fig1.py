@@ -240,7 +240,14 @@ def test_looker_stats_reads_the_untrained_entropy_and_names_bad_runs(tmp_path, c
     assert str(tmp_path) in error and "metrics.csv" in error
 
 
-@pytest.mark.parametrize(("marker", "table"), [("looker-probe", "looker_probe.csv"), ("looker-sweep", "looker.csv")])
+@pytest.mark.parametrize(
+    ("marker", "table"),
+    [
+        ("looker-probe", "looker_probe.csv"),
+        ("looker-sweep", "looker.csv"),
+        ("looker-ablations", "looker_ablations.csv"),
+    ],
+)
 def test_reproduction_doc_quotes_the_committed_looker_tables(marker, table):
     looker_stats = load("looker_stats")
     rows = read_csv(FIG1 / "results" / table)
