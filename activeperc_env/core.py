@@ -74,8 +74,8 @@ class Simulator:
         self._ids = _Ids(self.model)
         self._renderer: TiledRenderer | None = None
         self._views: np.ndarray | None = None  # the latest first-person view of every room
-        self._fresh = np.zeros(num_envs, dtype=bool)  # rooms whose view in _views shows their current state
-        self._tiles = np.full(num_envs, -1)  # where in the offscreen buffer each view in _views was drawn
+        # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
+        self._tiles = np.full(num_envs, -1)
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
         self.seeds = np.zeros(num_envs, dtype=np.int64)
@@ -119,7 +119,7 @@ class Simulator:
         self._ctrl[ids] = 0.0
         self.cycle[ids] = 0
         self.done[ids] = False
-        self._fresh[ids] = False
+        self._tiles[ids] = -1
 
     def move(self, actions, ids=None) -> MoveResult:
         """The mover's half of a cycle: drive the wheels for one control period.
@@ -136,7 +136,7 @@ class Simulator:
         ctrl[:, self._ids.wheels] = self._wheel_targets[actions]
         self._ctrl[ids] = ctrl
         self._batch.step(ids, nstep=self.substeps)
-        self._fresh[ids] = False
+        self._tiles[ids] = -1
         # a stiff servo holds the pan joint while the base moves; its residual error (about
         # 1e-5 rad) would accumulate over an episode, so the joint returns to its command
         self._qpos[ids, self._ids.pan] = self._ctrl[ids, self._ids.pan_ctrl]
@@ -162,7 +162,7 @@ class Simulator:
         actions = _check_actions(actions, ids, LOOKER_ACTIONS, "looker")
         before = self._qpos[ids, self._ids.pan]
         pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
-        self._fresh[ids[pan != before]] = False  # a hold, or a pan against the limit, leaves the view as it was
+        self._tiles[ids[pan != before]] = -1  # a hold, or a pan against the limit, leaves the view as it was
         self._qpos[ids, self._ids.pan] = pan
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self._ctrl[ids, self._ids.pan_ctrl] = pan
@@ -185,7 +185,7 @@ class Simulator:
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
         # the rasteriser may shade a pixel one level differently in another tile: a view is reused only where
         # it was drawn in the tile this call would draw it in, and a stale one is drawn again in that tile
-        stale = ~(self._fresh[ids] & (self._tiles[ids] == tiles))
+        stale = self._tiles[ids] != tiles
         if stale.any():
             if stale.all() or len(ids) > per_pass or len(np.unique(ids)) < len(ids):
                 stale[:] = True
@@ -195,7 +195,6 @@ class Simulator:
                 self._views[redraw] = self.renderer.render(
                     self._qpos[redraw], self._mocap_pos[redraw], tiles=tiles[stale]
                 )
-            self._fresh[ids[stale]] = True
             self._tiles[ids[stale]] = tiles[stale]
         if out is None:
             return self._views[ids]  # a copy: callers may keep or change it
