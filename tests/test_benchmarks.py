@@ -63,3 +63,19 @@ def test_performance_md_quotes_the_committed_scaling_csv():
     assert table[f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"] == [
         f"{float(row['ratio']):.2f}" for row in rows
     ]
+
+
+def test_collect_breakdown_times_every_part_and_restores_the_library():
+    from activeperc_env.core import Simulator
+    from activeperc_rl.models import Head
+
+    spec = importlib.util.spec_from_file_location("collect_breakdown", SCRIPT.with_name("collect_breakdown.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    originals = (Simulator.move, Simulator.render, Head.forward)
+    result = module.breakdown("meta", num_envs=2, iterations=1, warmup_iters=0)
+    assert (Simulator.move, Simulator.render, Head.forward) == originals
+    assert result["steps"] == 3 * 16  # meta: three rollouts of rollout_length 16
+    parts = [result[label] for label, *_ in module.PARTS if label in result]
+    assert len(parts) >= 3 and all(seconds > 0 for seconds in parts)
+    assert sum(parts) < result["collection"] < result["total"]
