@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from activeperc_rl.allocator import keep_freed_memory
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import (
     CHECKPOINT,
@@ -73,6 +74,7 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
     save_yaml(config, out / CONFIG)
 
     device = resolve_device(config.device)
+    keep_freed_memory()  # the learner's large tensors reuse freed memory instead of faulting in fresh pages
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)

@@ -116,7 +116,10 @@ def main() -> None:
 
     import torch
 
+    from activeperc_rl.allocator import keep_freed_memory
+
     torch.set_num_threads(args.threads)
+    keep_freed_memory()  # as activeperc-train does
     result = breakdown(args.method, args.num_envs, args.iterations, args.warmup_iters)
     steps, collection = result["steps"], result["collection"]
     print(f"{args.method}, {args.num_envs} rooms, {args.iterations} iterations, torch on {args.threads} thread(s)")

@@ -10,6 +10,7 @@ What it measures (networks on ``--device``, the CPU by default; the default
    time of those iterations. The time spent inside the collectors (``Method._next``, wrapped by this script
    only; it includes the policy's and the in-loop looker's forward passes and the renders) is reported as
    "collect", the rest of each iteration (losses, backward passes, optimizer steps, soft updates) as "learn".
+   The allocator is set as ``activeperc-train`` sets it (:func:`~activeperc_rl.allocator.keep_freed_memory`).
 2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, measured by
    ``benchmarks/env_speed.py``'s own function (in a child process) in this same run.
 3. Each method's frames/s divided by MiniWorld's steps/s, and the goals of the issues: ``meta`` at least 1x
@@ -152,17 +153,20 @@ def main() -> None:
     import torch
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+    from activeperc_rl.allocator import keep_freed_memory
 
     if args.threads:
         torch.set_num_threads(args.threads)
     machine = env_speed.machine_info()
     machine |= {"torch": torch.__version__, "torch_threads": torch.get_num_threads(), "device": args.device}
+    machine["keep_freed_memory"] = keep_freed_memory()  # as activeperc-train does
     if torch.cuda.is_available():
         machine["gpu"] = torch.cuda.get_device_name()
     print("activeperc training speed vs MiniWorld")
     cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
     print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
     print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
+    print(f"         malloc keeps freed memory (activeperc_rl.allocator): {machine['keep_freed_memory']}")
     if "gpu" in machine:
         print(f"         GPU {machine['gpu']}")
     print(
