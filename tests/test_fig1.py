@@ -132,7 +132,11 @@ def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
     runs = tmp_path / "runs"
     argv = [sys.executable, str(FIG1 / "sweep.py"), "--only", "joint_fov60", "--seeds", "0", "--frames", "100000"]
     argv += ["--runs", str(runs), "--results", str(tmp_path / "results"), *TINY]
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    # SIGINT at its default in the sweep, also when pytest itself runs with it ignored (as a background job)
+    default_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
+    process = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=default_sigint
+    )
     metrics = runs / "joint_fov60" / "seed0" / "metrics.csv"
     deadline = time.time() + 120
     while time.time() < deadline and not (metrics.is_file() and len(metrics.read_text().splitlines()) > 3):
