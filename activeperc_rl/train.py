@@ -53,6 +53,9 @@ def resolve_device(name: str) -> torch.device:
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
     """Train ``config.method`` for ``config.frames`` frames into the run directory ``out``.
 
+    For this whole process, torch runs on ``config.torch_threads`` threads and glibc's ``malloc`` keeps freed
+    memory for reuse (:func:`~activeperc_rl.allocator.keep_freed_memory`).
+
     Args:
         config: the run's configuration.
         out: the run directory (created if needed).
