@@ -5,6 +5,8 @@ What it measures (random actions throughout, each figure timed for ``--seconds``
 1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's step and
    the looker's step (each gives one 80x60 observation; the mover's is drawn only when the random look
    turned the camera, otherwise it is the looker's view again); the env is reset when an episode ends.
+   Then the same cycles again with timers on the env's simulator: where a cycle's time goes (physics,
+   renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts).
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
    over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
    only the rooms whose camera turned), then resetting and rendering the rooms that are done.
@@ -101,6 +103,65 @@ def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
         return timed_rate(cycle, seconds, warmup), gl_renderer
     finally:
         env.close()
+
+
+AEC_PARTS = {
+    "move": "physics (Simulator.move)",
+    "render": "renders (Simulator.render)",
+    "look": "look (Simulator.look)",
+    "reset": "resets (Simulator.reset)",
+}
+
+
+def aec_breakdown(seconds: float, warmup: float, seed: int) -> dict[str, float]:
+    """Where an AEC cycle's time goes: milliseconds per cycle in each of :data:`AEC_PARTS`, in ``"rest"`` (PettingZoo's
+    API, action checks, observation dicts) and in all, ``"total"``.
+
+    The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
+    the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
+    """
+    import activeperc_env
+
+    env = activeperc_env.env()
+    env.reset(seed=seed)
+    for i, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(seed + i)
+    sim = env.unwrapped.sim
+    spent = dict.fromkeys(AEC_PARTS, 0.0)
+
+    def timer(part: str, method):
+        def timed(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return method(*args, **kwargs)
+            finally:
+                spent[part] += time.perf_counter() - start
+
+        return timed
+
+    for part in AEC_PARTS:
+        setattr(sim, part, timer(part, getattr(sim, part)))
+
+    def run(duration: float) -> tuple[int, float]:
+        cycles, start = 0, time.perf_counter()
+        while time.perf_counter() - start < duration:
+            for agent in env.possible_agents:
+                env.step(env.action_space(agent).sample())
+            if any(env.terminations.values()) or any(env.truncations.values()):
+                env.reset()
+            cycles += 1
+        return cycles, time.perf_counter() - start
+
+    try:
+        run(warmup)
+        spent.update(dict.fromkeys(spent, 0.0))
+        cycles, elapsed = run(seconds)
+    finally:
+        env.close()
+    result = {part: 1e3 * t / cycles for part, t in spent.items()}
+    result["total"] = 1e3 * elapsed / cycles
+    result["rest"] = result["total"] - sum(result[part] for part in AEC_PARTS)
+    return result
 
 
 def untimed(part: str, call: Callable[[], object]) -> None:
@@ -250,6 +311,7 @@ def main() -> None:
     ours["aec"], gl_renderer = bench_aec(args.seconds, args.warmup, args.seed)
     machine["gl_renderer"] = gl_renderer
     print(f"ours  {'AEC env activeperc_env.env()':<34}{ours['aec']:9.1f} cycles/s   (GL: {gl_renderer})")
+    aec_parts = aec_breakdown(args.seconds, args.warmup, args.seed)
     for n in CORE_SIZES:
         ours[f"core_n{n}"] = bench_core(n, args.seconds, args.warmup, args.seed)
         label = f"core Simulator(num_envs={n})"
@@ -263,6 +325,12 @@ def main() -> None:
         print(f"peer  {label:<34}{peer_rate:9.1f} steps/s    (obs {shape}, GL: {peer['gl_renderer']})")
     else:
         print(f"peer  MiniWorld {PEER_ENV}: NOT MEASURED, {why}")
+    print()
+
+    parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
+    print(f"where an AEC cycle goes (timed apart): {aec_parts['total']:.2f} ms = {parts} + the rest (PettingZoo API, "
+          f"checks, observation dicts) {aec_parts['rest']:.2f}" + (f"; a MiniWorld step: {1e3 / peer_rate:.2f} ms"
+                                                                    if peer_rate else ""))
     print()
 
     ratios, goals = summarise(ours, peer_rate)
@@ -280,6 +348,7 @@ def main() -> None:
             "warmup": args.warmup,
             "seed": args.seed,
             "ours_cycles_per_s": ours,
+            "aec_ms_per_cycle": aec_parts,
             "miniworld": peer,
             "miniworld_error": why,
             "ratios": ratios,

@@ -1,4 +1,4 @@
-"""benchmarks/env_scaling.py at its tiniest size: the rates CSV, the plot and the memory samples."""
+"""The benchmark scripts at their tiniest sizes: env_scaling's CSV, plot and memory samples, and the breakdowns."""
 
 import csv
 import importlib.util
@@ -79,3 +79,17 @@ def test_collect_breakdown_times_every_part_and_restores_the_library():
     parts = [result[label] for label, *_ in module.PARTS if label in result]
     assert len(parts) >= 3 and all(seconds > 0 for seconds in parts)
     assert sum(parts) < result["collection"] < result["total"]
+
+
+def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
+    from activeperc_env.core import Simulator
+
+    spec = importlib.util.spec_from_file_location("env_speed", SCRIPT.with_name("env_speed.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    originals = [getattr(Simulator, part) for part in module.AEC_PARTS]
+    result = module.aec_breakdown(seconds=0.5, warmup=0.1, seed=0)
+    assert [getattr(Simulator, part) for part in module.AEC_PARTS] == originals
+    assert all(result[part] > 0 for part in ("move", "render", "look"))
+    assert 0 < result["rest"] < result["total"]
+    assert sum(result[part] for part in module.AEC_PARTS) + result["rest"] == pytest.approx(result["total"])
