@@ -6,7 +6,7 @@ What it measures (random actions throughout, each figure timed for ``--seconds``
    the looker's step (each gives one 80x60 observation; the mover's is drawn only when the random look
    turned the camera, otherwise it is the looker's view again); the env is reset when an episode ends.
    Then the same cycles again with timers on the env's simulator: where a cycle's time goes (physics,
-   renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts).
+   renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts, random actions).
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
    over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
    only the rooms whose camera turned), then resetting and rendering the rooms that are done.
@@ -115,7 +115,7 @@ AEC_PARTS = {
 
 def aec_breakdown(seconds: float, warmup: float, seed: int) -> dict[str, float]:
     """Where an AEC cycle's time goes: milliseconds per cycle in each of :data:`AEC_PARTS`, in ``"rest"`` (PettingZoo's
-    API, action checks, observation dicts) and in all, ``"total"``.
+    API, action checks, observation dicts, drawing the random actions) and in all, ``"total"``.
 
     The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
     the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
@@ -328,9 +328,9 @@ def main() -> None:
     print()
 
     parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
-    print(f"where an AEC cycle goes (timed apart): {aec_parts['total']:.2f} ms = {parts} + the rest (PettingZoo API, "
-          f"checks, observation dicts) {aec_parts['rest']:.2f}" + (f"; a MiniWorld step: {1e3 / peer_rate:.2f} ms"
-                                                                    if peer_rate else ""))
+    rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts['rest']:.2f}"
+    peer_step = f"; a MiniWorld step: {1e3 / peer_rate:.2f} ms" if peer_rate else ""
+    print(f"where an AEC cycle goes (timed apart): {aec_parts['total']:.2f} ms = {parts} + {rest}{peer_step}")
     print()
 
     ratios, goals = summarise(ours, peer_rate)
