@@ -82,15 +82,15 @@ def current_gl_renderer() -> str:
         return "?"
 
 
-def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
-    """Cycles/s of the PettingZoo AEC env with random actions; also returns the GL renderer's name."""
+def random_aec(seed: int):
+    """The PettingZoo AEC env reset from ``seed``, and one random-action cycle of it (``cycle() -> 1``) that resets the
+    env when an episode ends."""
     import activeperc_env
 
     env = activeperc_env.env()
     env.reset(seed=seed)
     for i, agent in enumerate(env.possible_agents):
         env.action_space(agent).seed(seed + i)
-    gl_renderer = current_gl_renderer()
 
     def cycle() -> int:
         for agent in env.possible_agents:  # the mover, then the looker
@@ -99,6 +99,13 @@ def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
             env.reset()  # unseeded: continues the seeded stream
         return 1
 
+    return env, cycle
+
+
+def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
+    """Cycles/s of the PettingZoo AEC env with random actions; also returns the GL renderer's name."""
+    env, cycle = random_aec(seed)
+    gl_renderer = current_gl_renderer()
     try:
         return timed_rate(cycle, seconds, warmup), gl_renderer
     finally:
@@ -120,12 +127,7 @@ def aec_breakdown(seconds: float, warmup: float, seed: int) -> dict[str, float]:
     The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
     the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
     """
-    import activeperc_env
-
-    env = activeperc_env.env()
-    env.reset(seed=seed)
-    for i, agent in enumerate(env.possible_agents):
-        env.action_space(agent).seed(seed + i)
+    env, cycle = random_aec(seed)
     sim = env.unwrapped.sim
     spent = dict.fromkeys(AEC_PARTS, 0.0)
 
@@ -141,25 +143,17 @@ def aec_breakdown(seconds: float, warmup: float, seed: int) -> dict[str, float]:
 
     for part in AEC_PARTS:
         setattr(sim, part, timer(part, getattr(sim, part)))
-
-    def run(duration: float) -> tuple[int, float]:
-        cycles, start = 0, time.perf_counter()
-        while time.perf_counter() - start < duration:
-            for agent in env.possible_agents:
-                env.step(env.action_space(agent).sample())
-            if any(env.terminations.values()) or any(env.truncations.values()):
-                env.reset()
-            cycles += 1
-        return cycles, time.perf_counter() - start
-
     try:
-        run(warmup)
+        timed_rate(cycle, warmup, 0.0)  # the warm-up, whose time is then forgotten
         spent.update(dict.fromkeys(spent, 0.0))
-        cycles, elapsed = run(seconds)
+        start = time.perf_counter()
+        rate = timed_rate(cycle, seconds, 0.0)
+        elapsed = time.perf_counter() - start
     finally:
         env.close()
-    result = {part: 1e3 * t / cycles for part, t in spent.items()}
-    result["total"] = 1e3 * elapsed / cycles
+    total = 1e3 / rate  # ms per cycle
+    result = {part: total * t / elapsed for part, t in spent.items()}  # each part's share of a cycle
+    result["total"] = total
     result["rest"] = result["total"] - sum(result[part] for part in AEC_PARTS)
     return result
 
