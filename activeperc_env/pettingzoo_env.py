@@ -134,8 +134,8 @@ class raw_env(_Adapter, AECEnv):  # noqa: N801 (PettingZoo's naming convention)
             self.render()
 
     def observe(self, agent):
-        """The latest observation of ``agent``."""
-        return self._obs[self._known(agent)]
+        """The latest observation of ``agent`` (a copy: changing it changes nothing the env keeps)."""
+        return _copy(self._obs[self._known(agent)])
 
     def step(self, action) -> None:
         """Apply the selected agent's action (``None`` for an agent whose episode is over)."""
@@ -184,7 +184,7 @@ class parallel_env(_Adapter, ParallelEnv):  # noqa: N801 (PettingZoo's naming co
         obs = self._observe_now()
         if self.render_mode == "human":
             self.render()
-        return {agent: obs for agent in self.agents}, {agent: {} for agent in self.agents}
+        return {agent: _copy(obs) for agent in self.agents}, {agent: {} for agent in self.agents}
 
     def step(self, actions: dict):
         """One cycle: the mover's action, then the looker's; returns PettingZoo's five dicts."""
@@ -208,12 +208,17 @@ class parallel_env(_Adapter, ParallelEnv):  # noqa: N801 (PettingZoo's naming co
         if self.render_mode == "human":
             self.render()
         return (
-            {agent: obs for agent in agents},
+            {agent: _copy(obs) for agent in agents},
             rewards,
             dict.fromkeys(agents, terminated),
             dict.fromkeys(agents, truncated),
             {agent: {} for agent in agents},
         )
+
+
+def _copy(obs: dict) -> dict:
+    """An observation of its own, so that one agent's (or one call's) changes reach no other."""
+    return {key: value.copy() for key, value in obs.items()}
 
 
 def env(render_mode: str | None = None, **config):

@@ -115,3 +115,24 @@ def test_rgb_array_map_and_headless_human(monkeypatch):
         assert human.render() is None
         human.step(0)
     assert sum("display" in str(w.message) for w in caught) == 1
+
+
+def test_observations_are_the_callers_own():
+    """Changing an observation in place (a user's preprocessing) changes neither the other agent's nor a later one."""
+    aec = activeperc_env.env()
+    aec.reset(seed=3)
+    first = aec.last()[0]
+    kept = first["image"].copy()
+    first["image"][:] = 0
+    first["pan"][:] = 9.0
+    assert np.array_equal(aec.observe(MOVER)["image"], kept) and aec.observe(MOVER)["pan"][0] == 0.0
+    assert np.array_equal(aec.observe(LOOKER)["image"], kept)
+
+    par = activeperc_env.parallel_env()
+    for observations in (par.reset(seed=3)[0], par.step({MOVER: 2, LOOKER: 0})[0]):
+        mover, looker = observations[MOVER], observations[LOOKER]
+        assert np.array_equal(mover["image"], looker["image"]) and mover["pan"] == looker["pan"]
+        before = looker["image"].copy()
+        mover["image"][:] = 0
+        mover["pan"][:] = 9.0
+        assert np.array_equal(looker["image"], before) and looker["pan"][0] != 9.0
