@@ -6,6 +6,12 @@ import ctypes.util
 import os
 import sys
 
+FORK_HELP = (
+    "this process was forked from one that had already rendered, and the GL driver's state does not survive a "
+    "fork: making a GL context here would hang. Start the process with the 'spawn' method instead, e.g. "
+    "multiprocessing.get_context('spawn'), or for Gymnasium's async vector env "
+    "gymnasium.make_vec(..., vectorization_mode='async', vector_kwargs={'context': 'spawn'})."
+)
 EGL_HELP = (
     "activeperc renders headless through EGL, but libEGL was not found. Install it, e.g. "
     "'apt-get install libegl1 libgl1-mesa-dri' on Debian/Ubuntu, or set MUJOCO_GL to a "
@@ -25,12 +31,28 @@ def choose_backend() -> None:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
+_made_contexts = False  # this process, or one it was forked from, has made a GL context
+_forked_after_gl = False  # ... and this process is such a fork
+
+
+def _note_fork() -> None:
+    global _forked_after_gl
+    _forked_after_gl = _made_contexts
+
+
+os.register_at_fork(after_in_child=_note_fork)
+
+
 def gl_context(width: int, height: int):
     """An offscreen GL context of the backend ``MUJOCO_GL`` names, whatever was imported first.
 
     ``mujoco`` binds ``mujoco.GLContext`` when it is imported; if that happened before
-    :func:`choose_backend` ran, this still returns a context of the chosen backend.
+    :func:`choose_backend` ran, this still returns a context of the chosen backend. In a process
+    forked from one that had made a context (where the driver would hang), raises ``RuntimeError``.
     """
+    global _made_contexts
+    if _forked_after_gl:
+        raise RuntimeError(FORK_HELP)
     backend = os.environ.get("MUJOCO_GL", "").lower()
     if backend == "egl":
         from mujoco.egl import GLContext
@@ -38,4 +60,6 @@ def gl_context(width: int, height: int):
         from mujoco.osmesa import GLContext
     else:
         from mujoco import GLContext
-    return GLContext(width, height)
+    context = GLContext(width, height)
+    _made_contexts = True
+    return context

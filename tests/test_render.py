@@ -1,6 +1,10 @@
 """The tiled renderer draws the same pixels as one view at a time, and the map shows the scene."""
 
+import subprocess
+import sys
+
 import numpy as np
+import pytest
 from conftest import assert_same_view
 
 from activeperc_env import EnvConfig, Simulator
@@ -50,3 +54,41 @@ def test_map_shows_goal_and_occluders():
     red = (image[..., 0] > 150) & (image[..., 1] < 60) & (image[..., 2] < 60)
     blue = (image[..., 2] > 150) & (image[..., 0] < 80)
     assert red.sum() > 50 and blue.sum() > 50
+
+
+FORK_SCRIPT = """
+import multiprocessing, sys
+from activeperc_env import Simulator
+
+def child(queue):
+    try:
+        sim = Simulator(num_envs=1)
+        sim.reset(seeds=[1])
+        queue.put(("rendered", sim.render().shape))
+    except RuntimeError as error:
+        queue.put(("error", str(error)))
+
+if sys.argv[1] == "after-render":
+    parent = Simulator(num_envs=1)
+    parent.reset(seeds=[0])
+    parent.render()
+context = multiprocessing.get_context("fork")
+queue = context.Queue()
+process = context.Process(target=child, args=(queue,), daemon=True)  # a hung child dies with the script
+process.start()
+print(queue.get(timeout=60))
+process.join()
+"""
+
+
+@pytest.mark.parametrize("parent", ["after-render", "before-render"])
+def test_a_fork_of_a_rendering_process_fails_clearly_instead_of_hanging(parent):
+    """The GL driver hangs when a forked child makes a context after its parent made one: the child gets a
+    RuntimeError that says to spawn instead. A fork taken before the parent rendered renders as usual."""
+    done = subprocess.run(
+        [sys.executable, "-c", FORK_SCRIPT, parent], capture_output=True, text=True, timeout=120, check=True
+    )
+    if parent == "after-render":
+        assert "('error'," in done.stdout and "'spawn'" in done.stdout
+    else:
+        assert done.stdout.strip() == "('rendered', (1, 60, 80, 3))"
