@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 
 from activeperc_env.names import OCCLUDER_BODIES
@@ -43,20 +44,20 @@ class EnvConfig:
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
 
     def __post_init__(self) -> None:
+        normalize_numbers(self)
         checks = {
-            "fov": 0.0 < self.fov < 180.0,
-            "width": isinstance(self.width, int) and 8 <= self.width <= 1024,
-            "height": isinstance(self.height, int) and 8 <= self.height <= 1024,
-            "num_obstacles": isinstance(self.num_obstacles, int)
-            and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
-            "goal_distance": 2.5 <= self.goal_distance <= 4.6,
-            "max_cycles": isinstance(self.max_cycles, int) and self.max_cycles >= 1,
-            "pan_range": 0.0 <= self.pan_range <= 180.0,
-            "pan_step": 0.0 < self.pan_step <= 180.0,
-            "control_hz": 0.5 <= self.control_hz <= 200.0,
-            "forward_speed": 0.0 < self.forward_speed <= 3.0,
-            "turn_speed": 0.0 < self.turn_speed <= 720.0,
-            "looker_reward": self.looker_reward in LOOKER_REWARDS,
+            "fov": is_number(self.fov) and 0.0 < self.fov < 180.0,
+            "width": is_int(self.width) and 8 <= self.width <= 1024,
+            "height": is_int(self.height) and 8 <= self.height <= 1024,
+            "num_obstacles": is_int(self.num_obstacles) and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
+            "goal_distance": is_number(self.goal_distance) and 2.5 <= self.goal_distance <= 4.6,
+            "max_cycles": is_int(self.max_cycles) and self.max_cycles >= 1,
+            "pan_range": is_number(self.pan_range) and 0.0 <= self.pan_range <= 180.0,
+            "pan_step": is_number(self.pan_step) and 0.0 < self.pan_step <= 180.0,
+            "control_hz": is_number(self.control_hz) and 0.5 <= self.control_hz <= 200.0,
+            "forward_speed": is_number(self.forward_speed) and 0.0 < self.forward_speed <= 3.0,
+            "turn_speed": is_number(self.turn_speed) and 0.0 < self.turn_speed <= 720.0,
+            "looker_reward": isinstance(self.looker_reward, str) and self.looker_reward in LOOKER_REWARDS,
         }
         allowed = {
             "fov": "a number of degrees in (0, 180)",
@@ -92,3 +93,25 @@ class EnvConfig:
         """MuJoCo's vertical field of view (degrees) for the horizontal ``fov`` and the aspect."""
         half = math.radians(self.fov) / 2
         return math.degrees(2 * math.atan(math.tan(half) * self.height / self.width))
+
+
+def is_int(value) -> bool:
+    """Whether ``value`` is an integer (Python's or numpy's), not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def is_number(value) -> bool:
+    """Whether ``value`` is a real number (Python's or numpy's), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def normalize_numbers(config) -> None:
+    """Turn the numbers in a frozen config dataclass's ``int`` and ``float`` fields (numpy's too) into Python ints
+    and floats, in place, so that the config compares, prints and saves as plain values; anything else is left
+    for the config's checks to reject."""
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if f.type == "int" and is_int(value):
+            object.__setattr__(config, f.name, int(value))
+        elif f.type == "float" and is_number(value):
+            object.__setattr__(config, f.name, float(value))

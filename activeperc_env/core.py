@@ -20,7 +20,7 @@ import mujoco.batch
 import numpy as np
 
 from activeperc_env import names
-from activeperc_env.config import EnvConfig
+from activeperc_env.config import EnvConfig, is_int
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
 
@@ -59,10 +59,10 @@ class Simulator:
     """
 
     def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, nthread: int = 0):
-        if not isinstance(num_envs, int) or num_envs < 1:
+        if not is_int(num_envs) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
         self.config = config if config is not None else EnvConfig()
-        self.num_envs = num_envs
+        self.num_envs = num_envs = int(num_envs)
         self.model = load_model(self.config)
         self.substeps = max(1, round(1.0 / (self.config.control_hz * self.model.opt.timestep)))
         nthread = min(nthread or usable_cpus(), num_envs)

@@ -82,8 +82,10 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             raise ValueError("--resume takes the run's own config.yaml; drop --config")
         return load_run_config(args.out).replace(**flags)
     values = load_yaml(args.config) if args.config else {}
-    env = dict(values.pop("env", None) or {})
-    env |= {k: v for k, v in flags.items() if k in env_names}
+    env = values.pop("env", None) or {}
+    if not isinstance(env, dict):
+        raise ValueError(f"'env' in {args.config!r} must be a mapping of environment options, got {env!r}")
+    env = env | {k: v for k, v in flags.items() if k in env_names}
     values |= {k: v for k, v in flags.items() if k not in env_names}
     return TrainConfig.from_dict(values | {"env": env})
 

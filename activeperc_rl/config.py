@@ -12,12 +12,14 @@ The CLI flags of ``activeperc-train`` are generated from these fields (and from
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
 from activeperc_env import EnvConfig
+from activeperc_env.config import is_int, is_number, normalize_numbers
 from activeperc_rl.atomic import atomic_path
 
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
@@ -126,43 +128,57 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if isinstance(self.env, dict):
             object.__setattr__(self, "env", EnvConfig.from_kwargs(**self.env))
-        if isinstance(self.channels, list):
-            object.__setattr__(self, "channels", tuple(self.channels))
+        if isinstance(self.channels, (list, tuple)):
+            object.__setattr__(self, "channels", tuple(int(c) if is_int(c) else c for c in self.channels))
+        normalize_numbers(self)
         checks = {
             "method": (self.method in METHODS, f"one of {METHODS}"),
-            "frames": (_is_int(self.frames) and self.frames >= 1, "an int >= 1"),
-            "num_envs": (_is_int(self.num_envs) and self.num_envs >= 1, "an int >= 1"),
-            "rollout_length": (_is_int(self.rollout_length) and self.rollout_length >= 2, "an int >= 2"),
-            "seed": (_is_int(self.seed) and self.seed >= 0, "an int >= 0"),
+            "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
+            "num_envs": (is_int(self.num_envs) and self.num_envs >= 1, "an int >= 1"),
+            "rollout_length": (is_int(self.rollout_length) and self.rollout_length >= 2, "an int >= 2"),
+            "seed": (is_int(self.seed) and self.seed >= 0, "an int >= 0"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
-            "torch_threads": (_is_int(self.torch_threads) and self.torch_threads >= 0, "an int >= 0"),
-            "learner_threads": (_is_int(self.learner_threads) and self.learner_threads >= 0, "an int >= 0"),
+            "torch_threads": (is_int(self.torch_threads) and self.torch_threads >= 0, "an int >= 0"),
+            "learner_threads": (is_int(self.learner_threads) and self.learner_threads >= 0, "an int >= 0"),
             "collect_workers": (
-                _is_int(self.collect_workers) and _is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
+                is_int(self.collect_workers) and is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
                 f"an int in 0 .. num_envs ({self.num_envs})",
             ),
-            "gamma": (0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
-            "gae_lambda": (0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
-            "lr": (self.lr > 0, "a number > 0"),
-            "looker_lr": (self.looker_lr > 0, "a number > 0"),
-            "entropy_coeff": (self.entropy_coeff >= 0, "a number >= 0"),
-            "looker_entropy_coeff": (self.looker_entropy_coeff >= 0, "a number >= 0"),
-            "critic_coeff": (self.critic_coeff > 0, "a number > 0"),
-            "max_grad_norm": (self.max_grad_norm > 0, "a number > 0"),
-            "epsilon": (0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
-            "alpha": (0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
-            "looker_hold_prob": (0.0 < self.looker_hold_prob < 1.0, "a probability in (0, 1)"),
+            "gamma": (is_number(self.gamma) and 0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
+            "gae_lambda": (is_number(self.gae_lambda) and 0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
+            "lr": (is_number(self.lr) and self.lr > 0, "a number > 0"),
+            "looker_lr": (is_number(self.looker_lr) and self.looker_lr > 0, "a number > 0"),
+            "entropy_coeff": (is_number(self.entropy_coeff) and self.entropy_coeff >= 0, "a number >= 0"),
+            "looker_entropy_coeff": (
+                is_number(self.looker_entropy_coeff) and self.looker_entropy_coeff >= 0,
+                "a number >= 0",
+            ),
+            "critic_coeff": (is_number(self.critic_coeff) and self.critic_coeff > 0, "a number > 0"),
+            "max_grad_norm": (is_number(self.max_grad_norm) and self.max_grad_norm > 0, "a number > 0"),
+            "epsilon": (is_number(self.epsilon) and 0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
+            "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
+            "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
+            "alpha": (is_number(self.alpha) and 0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
+            "looker_hold_prob": (
+                is_number(self.looker_hold_prob) and 0.0 < self.looker_hold_prob < 1.0,
+                "a probability in (0, 1)",
+            ),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
-            "curriculum_fraction": (0.0 < self.curriculum_fraction < 1.0, "a number in (0, 1)"),
+            "curriculum_fraction": (
+                is_number(self.curriculum_fraction) and 0.0 < self.curriculum_fraction < 1.0,
+                "a number in (0, 1)",
+            ),
             "channels": (
-                len(self.channels) >= 1 and all(_is_int(c) and c >= 1 for c in self.channels),
+                isinstance(self.channels, tuple)
+                and len(self.channels) >= 1
+                and all(is_int(c) and c >= 1 for c in self.channels),
                 "one or more ints >= 1",
             ),
-            "hidden_size": (_is_int(self.hidden_size) and self.hidden_size >= 1, "an int >= 1"),
-            "success_window": (_is_int(self.success_window) and self.success_window >= 1, "an int >= 1"),
-            "checkpoint_every": (self.checkpoint_every > 0, "seconds > 0"),
-            "eval_episodes": (_is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),
+            "hidden_size": (is_int(self.hidden_size) and self.hidden_size >= 1, "an int >= 1"),
+            "success_window": (is_int(self.success_window) and self.success_window >= 1, "an int >= 1"),
+            "checkpoint_every": (is_number(self.checkpoint_every) and self.checkpoint_every > 0, "seconds > 0"),
+            "eval_episodes": (is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),
         }
         for name, (ok, expected) in checks.items():
             if not ok:
@@ -178,8 +194,11 @@ class TrainConfig:
         if unknown:
             raise ValueError(f"unknown training option(s) {unknown}; known options: {sorted(known)}")
         values = dict(values)
-        if not isinstance(values.get("env", EnvConfig()), EnvConfig):
-            values["env"] = EnvConfig.from_kwargs(**(values["env"] or {}))
+        env = values.get("env", EnvConfig())
+        if not isinstance(env, EnvConfig):
+            if env is not None and not isinstance(env, dict):
+                raise ValueError(f"the training option 'env' must be a mapping of environment options, got {env!r}")
+            values["env"] = EnvConfig.from_kwargs(**(env or {}))
         return cls(**values)
 
     def to_dict(self) -> dict:
@@ -199,11 +218,18 @@ class TrainConfig:
 
 
 def load_yaml(path: str | Path) -> dict:
-    """Read a YAML preset (a mapping); a missing file or a non-mapping raises ``ValueError``."""
+    """Read a YAML preset (a mapping); a missing file, invalid YAML or a non-mapping raises ``ValueError``.
+
+    Numbers in exponent notation without a dot (``3e-5``, ``1E4``) are read as numbers, as YAML 1.2 and most
+    users read them, not as the strings of PyYAML's YAML 1.1.
+    """
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"config file {str(path)!r} does not exist")
-    values = yaml.safe_load(path.read_text()) or {}
+    try:
+        values = yaml.load(path.read_text(), Loader=_Loader) or {}
+    except yaml.YAMLError as error:
+        raise ValueError(f"config file {str(path)!r} is not valid YAML: {error}") from None
     if not isinstance(values, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
     return values
@@ -215,5 +241,12 @@ def save_yaml(config: TrainConfig, path: str | Path) -> None:
         temporary.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
 
 
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading ``3e-5`` as a float."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)

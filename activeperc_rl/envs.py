@@ -66,6 +66,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
+from activeperc_env.config import is_int
 
 MOVER, LOOKER = "mover", "looker"
 
@@ -136,8 +137,11 @@ class ActivePerceptionEnv(EnvBase):
     ):
         if split not in SPLITS:
             raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
-        if not isinstance(first_room, int) or first_room < 0:
+        if not is_int(num_envs) or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
+        if not is_int(first_room) or first_room < 0:
             raise ValueError(f"first_room={first_room!r} is invalid: expected an int >= 0")
+        num_envs, first_room = int(num_envs), int(first_room)
         super().__init__(device=device, batch_size=[num_envs])
         self.first_room = first_room
         self.split = split

@@ -1,5 +1,6 @@
 """Invalid configuration values are refused with a message that names them."""
 
+import numpy as np
 import pytest
 
 import activeperc_env
@@ -22,6 +23,11 @@ from activeperc_env.config import EnvConfig
         ("pan_step", 0),
         ("control_hz", 0),
         ("looker_reward", "mine"),
+        ("fov", "60"),
+        ("fov", None),
+        ("max_cycles", True),
+        ("width", 80.0),
+        ("looker_reward", 3),
     ],
 )
 def test_invalid_value_names_the_field(field, value):
@@ -41,3 +47,10 @@ def test_empty_room_is_allowed():
 def test_bad_render_mode_is_named():
     with pytest.raises(ValueError, match="ascii"):
         activeperc_env.env(render_mode="ascii")
+
+
+def test_numpy_numbers_become_python_numbers():
+    config = EnvConfig(width=np.int64(80), fov=np.float32(100), max_cycles=np.int32(12), pan_step=15)
+    assert (config.width, config.fov, config.max_cycles, config.pan_step) == (80, 100.0, 12, 15.0)
+    assert type(config.width) is int and type(config.fov) is float and type(config.pan_step) is float
+    assert activeperc_env.Simulator(config, num_envs=np.int64(2)).num_envs == 2

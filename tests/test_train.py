@@ -110,8 +110,12 @@ def test_bad_flags_are_named(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0)]
-)
+    ("field", "value"),
+    [
+        ("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0), ("lr", "7e-4"),
+        ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
+    ],
+)  # fmt: skip
 def test_invalid_training_value_names_the_field(field, value):
     with pytest.raises(ValueError, match=f"TrainConfig.{field}={value!r}"):
         TrainConfig(**{field: value})
@@ -127,6 +131,32 @@ def test_preset_then_flags(tmp_path):
     preset.write_text(yaml.safe_dump({"methd": "joint"}))
     with pytest.raises(ValueError, match="methd"):
         cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
+
+
+def test_preset_numbers_in_exponent_notation(tmp_path):
+    """PyYAML reads 3e-5 as a string (YAML 1.1); presets read it as the number everyone means."""
+    preset = tmp_path / "p.yaml"
+    preset.write_text("lr: 7e-4\nlooker_lr: 3E-5\nalpha: .5e-1\nframes: 3000\nenv:\n  fov: 1e2\n")
+    config = cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
+    assert (config.lr, config.looker_lr, config.alpha, config.frames, config.env.fov) == (7e-4, 3e-5, 0.05, 3000, 100.0)
+
+
+@pytest.mark.parametrize(
+    ("text", "named"),
+    [
+        ("frames: 1e4\n", "TrainConfig.frames=10000.0"),
+        ("env: {fov: '100'}\n", "EnvConfig.fov='100'"),
+        ("channels: 16\n", "TrainConfig.channels=16"),
+        ("env: [1, 2]\n", "'env'"),
+        ("method: meta\n  frames: [\n", "not valid YAML"),
+    ],
+)
+def test_bad_preset_values_are_named(tmp_path, capsys, text, named):
+    preset = tmp_path / "p.yaml"
+    preset.write_text(text)
+    assert cli.main(["--config", str(preset), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert named in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
 
 
 def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
