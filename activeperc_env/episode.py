@@ -63,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     iio.imwrite(args.out / "views.png", np.concatenate(strip, axis=1))
     written = ["map.png", "views.png"]
     if not args.no_video:
-        iio.imwrite(args.out / "episode.mp4", np.stack(frames), fps=10, codec="libx264", macro_block_size=1)
+        fps = env.config.control_hz  # the video plays in simulated time
+        iio.imwrite(args.out / "episode.mp4", np.stack(frames), fps=fps, codec="libx264", macro_block_size=1)
         written.append("episode.mp4")
     outcome = "reached the goal" if total > 0 else "did not reach the goal"
     print(f"random agents {outcome} in {cycles} cycles, return {total:.3f}")

@@ -16,7 +16,7 @@ HOLD = LOOKER_ACTIONS.index("hold")
 class _SingleAgentEnv(gym.Env):
     """One agent over a one-room ``Simulator``; subclasses map its action to a move and a look."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": EnvConfig.control_hz}  # each env: its own
 
     def __init__(self, render_mode: str | None = None, **config):
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -36,7 +36,7 @@ class _SingleAgentEnv(gym.Env):
         self.sim.reset(seeds=None if seed is None else [seed])
         if self.render_mode == "human":
             self.render()
-        return self._observe(), {}
+        return self._observe(), {"cycle": 0}
 
     def step(self, action):
         """One cycle: the move, then the look; returns Gymnasium's five values."""

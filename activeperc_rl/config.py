@@ -235,6 +235,20 @@ def load_yaml(path: str | Path) -> dict:
     return values
 
 
+def resolve_device(name: str):
+    """The ``torch.device`` a config's ``device`` names: ``"auto"`` is cuda when torch sees a GPU, else cpu;
+    ``"cuda"`` without a GPU, or a name not in :data:`DEVICES`, raises ``ValueError``."""
+    import torch
+
+    if name not in DEVICES:
+        raise ValueError(f"device={name!r} is invalid: expected one of {DEVICES}")
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device='cuda' was asked for but torch sees no CUDA device; use --device cpu or auto")
+    return torch.device(name)
+
+
 def save_yaml(config: TrainConfig, path: str | Path) -> None:
     """Write ``config`` as YAML (written to a temporary file first, then renamed over ``path``)."""
     with atomic_path(path) as temporary:

@@ -18,13 +18,15 @@ import numpy as np
 import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
+from activeperc_env.config import is_int
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
-from activeperc_rl.config import TrainConfig
+from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy
 
 MAX_ROOMS = 16
+VIDEO_SUFFIXES = (".mp4", ".gif")
 
 
 def evaluate(
@@ -51,8 +53,12 @@ def evaluate(
     Returns:
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
     """
-    if not isinstance(episodes, int) or episodes < 1:
+    if not is_int(episodes) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
+    if not is_int(seed) or seed < 0:
+        raise ValueError(f"seed={seed!r} is invalid: expected an int >= 0")
+    if video is not None and Path(video).suffix.lower() not in VIDEO_SUFFIXES:
+        raise ValueError(f"video file {str(video)!r} must end in one of {VIDEO_SUFFIXES} (its suffix picks the format)")
     if mover_policy is None:
         mover_policy, looker = RandomPolicy((MOVER, LOOKER)), None
     rooms = min(episodes, MAX_ROOMS)
@@ -83,7 +89,7 @@ def evaluate(
     finally:
         env.close()
     if video is not None:
-        _write_video(video, frames)
+        _write_video(video, frames, fps=config.env.control_hz)
     flat = np.concatenate([np.asarray(r) for r in returns])
     return {
         "episodes": int(flat.size),
@@ -123,11 +129,12 @@ def _video_frame(env, td) -> np.ndarray:
     return np.concatenate([pad, top], axis=1)
 
 
-def _write_video(path: str | Path, frames: list[np.ndarray]) -> None:
+def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:
+    """Write ``frames`` at ``fps`` (the env's control rate: the video plays in simulated time)."""
     import imageio.v2 as imageio
 
     with atomic_path(path) as temporary:
-        imageio.mimwrite(temporary, frames, fps=10, macro_block_size=1)
+        imageio.mimwrite(temporary, frames, fps=fps, macro_block_size=1)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -142,13 +149,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--random", action="store_true", help="evaluate uniformly random mover and looker instead")
     parser.add_argument("--video", metavar="FILE.mp4", help="write the first episode's view and map to FILE.mp4")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--device", default="cpu", help="device of the policy (default cpu)")
+    parser.add_argument(
+        "--device", default="cpu", choices=DEVICES, help="device of the policy (default cpu; auto: cuda when available)"
+    )
     args = parser.parse_args(argv)
     try:
-        config, mover_policy, looker = load_policy(args.run, args.device)
+        device = resolve_device(args.device)
+        config, mover_policy, looker = load_policy(args.run, device)
         if args.random:
             mover_policy, looker = None, None
-        result = evaluate(config, mover_policy, looker, args.episodes, args.seed, args.device, args.video)
+        result = evaluate(config, mover_policy, looker, args.episodes, args.seed, device, args.video)
     except ValueError as error:
         print(f"activeperc-eval: error: {error}", file=sys.stderr)
         return 2

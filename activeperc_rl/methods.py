@@ -281,9 +281,10 @@ class IA2C(_MoverA2C):
         rollout = self._next(self.collector)
         losses = self._update_mover(rollout)
         transitions, valid = looker_transitions(rollout)
-        with torch.no_grad():
-            self.looker_loss.value_estimator(transitions)
-        losses |= self._step("looker", self.looker_loss, transitions[valid])
+        if valid.any():  # none when every look of the rollout came after its episode's last move
+            with torch.no_grad():
+                self.looker_loss.value_estimator(transitions)
+            losses |= self._step("looker", self.looker_loss, transitions[valid])
         return Iteration(rollout.numel(), finished_returns(rollout), losses)
 
     def policy(self):

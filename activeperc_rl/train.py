@@ -36,18 +36,9 @@ from activeperc_rl.checkpoint import (
     load_checkpoint,
     save_checkpoint,
 )
-from activeperc_rl.config import TrainConfig, load_yaml, save_yaml
+from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import make_method
-
-
-def resolve_device(name: str) -> torch.device:
-    """``"auto"`` -> cuda when available, else cpu; ``"cuda"`` without a GPU raises ``ValueError``."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device='cuda' was asked for but torch sees no CUDA device; use --device cpu or auto")
-    return torch.device(name)
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
@@ -71,12 +62,17 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
     state = None
     if resume:
         state = load_checkpoint(out / CHECKPOINT, config)
+        if config.frames < state["frames"]:
+            raise ValueError(
+                f"frames={config.frames} is below the {state['frames']} frames the run in {str(out)!r} has trained: "
+                f"--frames is the total to train to, not an increment"
+            )
     elif (out / CHECKPOINT).exists():
         raise ValueError(f"{str(out)!r} already holds a run: pass --resume to continue it, or choose another --out")
+    device = resolve_device(config.device)
     out.mkdir(parents=True, exist_ok=True)
     save_yaml(config, out / CONFIG)
 
-    device = resolve_device(config.device)
     keep_freed_memory()  # the learner's large tensors reuse freed memory instead of faulting in fresh pages
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)

@@ -64,9 +64,8 @@ def bench_method(
     """
     import torch
 
-    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.config import TrainConfig, resolve_device
     from activeperc_rl.methods import make_method
-    from activeperc_rl.train import resolve_device
 
     changes = {"method": name, "device": device, "collect_workers": collect_workers}
     if num_envs is not None:

@@ -36,3 +36,11 @@ def test_rgb_array_render_is_the_map():
     env = gymnasium.make("activeperc/Joint-v0", render_mode="rgb_array")
     env.reset(seed=0)
     assert env.render().shape == (240, 320, 3)
+
+
+def test_info_counts_cycles_and_render_fps_is_the_control_rate():
+    env = gymnasium.make("activeperc/FixedForward-v0", control_hz=4.0)
+    assert env.reset(seed=0)[1] == {"cycle": 0}
+    assert env.step(2)[4] == {"cycle": 1}
+    assert env.metadata["render_fps"] == 4.0
+    assert activeperc_env.JointEnv.metadata["render_fps"] == activeperc_env.EnvConfig().control_hz

@@ -228,3 +228,16 @@ def test_every_network_lands_on_the_device(method):
     for name, module in built.modules.items():
         for key, tensor in [*module.named_parameters(), *module.named_buffers()]:
             assert tensor.device.type == "meta", (name, key, tensor.device)
+
+
+def test_ia2c_skips_the_looker_update_when_no_look_of_a_rollout_is_valid():
+    """With 2-cycle rollouts and 3-cycle episodes, some rollouts hold only the look after an episode's last move."""
+    config = TrainConfig(
+        method="ia2c", num_envs=1, rollout_length=2, channels=(8,), hidden_size=16, env={"max_cycles": 3}
+    )
+    method = make_method(config, torch.device("cpu"))
+    try:
+        logged = [method.iterate().losses for _ in range(3)]
+    finally:
+        method.close()
+    assert [any(key.startswith("looker/") for key in losses) for losses in logged] == [True, False, True]

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import imageio.v3 as iio
 import pytest
 import torch
 import yaml
@@ -94,6 +95,22 @@ def test_resume_with_other_options_names_them(tmp_path, capsys):
     assert cli.main(["--out", str(out), "--resume", "--fov", "100", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "fov" in err and "60" in err and "100" in err
+
+
+def test_resume_below_the_trained_frames_is_refused(tmp_path, capsys):
+    """--frames is a total: resuming to fewer frames than trained would only rewrite the run's config and eval."""
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "256", "--eval-episodes", "0")
+    saved = (out / "config.yaml").read_text()
+    assert cli.main(["--out", str(out), "--resume", "--frames", "100", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "frames=100" in err and "256" in err
+    assert (out / "config.yaml").read_text() == saved and not (out / "eval.json").exists()
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
+def test_cuda_without_a_gpu_is_refused_before_the_run_directory_is_made(tmp_path, capsys):
+    assert cli.main([*TINY, "--out", str(tmp_path / "run"), "--device", "cuda"]) == 2
+    assert "cuda" in capsys.readouterr().err and not (tmp_path / "run").exists()
 
 
 def test_resume_without_a_run_names_the_directory(tmp_path, capsys):
@@ -205,10 +222,21 @@ def test_eval_cli(tmp_path, capsys):
     result = json.loads(capsys.readouterr().out)
     assert result["episodes"] == 5 and 0 <= result["success_rate"] <= 1 and "mean_return" in result
     assert video.stat().st_size > 0
+    assert iio.immeta(video)["fps"] == TrainConfig().env.control_hz  # plays in simulated time
     assert evaluate.main([str(out / "checkpoint.pt"), "--episodes", "5", "--seed", "2", "--random", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["policy"] == "random"
     assert evaluate.main([str(tmp_path / "missing")]) == 2
     assert "missing" in capsys.readouterr().err
+    for flags, named in (
+        (["--video", str(tmp_path / "episode")], "episode"),
+        (["--seed", "-1"], "seed=-1"),
+    ):
+        assert evaluate.main([str(out), "--episodes", "2", *flags]) == 2
+        assert named in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        evaluate.main([str(out), "--device", "gpu"])
+    assert "gpu" in capsys.readouterr().err
+    assert evaluate.main([str(out), "--episodes", "2", "--device", "auto", "--json"]) == 0
 
 
 def test_eval_is_reproducible_and_held_out(tmp_path):
