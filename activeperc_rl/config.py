@@ -126,8 +126,10 @@ class TrainConfig:
     """The environment (the same for E1 and E2 and for evaluation)."""
 
     def __post_init__(self) -> None:
-        if isinstance(self.env, dict):
-            object.__setattr__(self, "env", EnvConfig.from_kwargs(**self.env))
+        if self.env is None or isinstance(self.env, dict):
+            object.__setattr__(self, "env", EnvConfig.from_kwargs(**(self.env or {})))
+        elif not isinstance(self.env, EnvConfig):
+            raise ValueError(f"TrainConfig.env={self.env!r} is invalid: expected a mapping of environment options")
         if isinstance(self.channels, (list, tuple)):
             object.__setattr__(self, "channels", tuple(int(c) if is_int(c) else c for c in self.channels))
         normalize_numbers(self)
@@ -193,12 +195,6 @@ class TrainConfig:
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown training option(s) {unknown}; known options: {sorted(known)}")
-        values = dict(values)
-        env = values.get("env", EnvConfig())
-        if not isinstance(env, EnvConfig):
-            if env is not None and not isinstance(env, dict):
-                raise ValueError(f"the training option 'env' must be a mapping of environment options, got {env!r}")
-            values["env"] = EnvConfig.from_kwargs(**(env or {}))
         return cls(**values)
 
     def to_dict(self) -> dict:
