@@ -50,7 +50,10 @@ Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_rese
 its own stream of episode seeds, derived from the base seed and ``i`` only (``first_room + i`` when the rooms
 are split over several envs), so two envs seeded alike
 (E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
-in the same layout; ``episode_seeds`` holds each room's current episode seed. Training rooms
+in the same layout; ``episode_seeds`` holds each room's current episode seed. A seed takes effect at each
+room's next reset: seed an env before its first reset (``make_env(seed=...)``), or reset it after seeding. A
+TorchRL ``Collector`` resets its env when it is built, so ``collector.set_seed(s)`` needs a
+``collector.reset()`` after it (or build the env with ``seed=``). Training rooms
 (``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
 evaluation layout never repeats a training layout whatever the base seeds.
 """

@@ -154,6 +154,20 @@ def test_same_seed_same_observations():
     assert not torch.equal(runs[0]["mover", "observation", "image"], runs[2]["mover", "observation", "image"])
 
 
+def test_collector_set_seed_then_reset_repeats_the_layouts():
+    """The Collector resets its env when built, before set_seed; its reset() restarts the rooms on the new seeds."""
+
+    def layouts(seed):
+        collector = Collector(lambda: make_env(num_envs=2, max_cycles=5), None, frames_per_batch=20, total_frames=20)
+        collector.set_seed(seed)
+        collector.reset()
+        first = next(iter(collector)).get(("mover", "observation", "image"))[:, 0].clone()
+        collector.shutdown()
+        return first
+
+    assert torch.equal(layouts(7), layouts(7)) and not torch.equal(layouts(7), layouts(8))
+
+
 def test_e1_e2_share_reset_seeds():
     """Same base seed: room i's k-th episode has the same layout whatever the looker and num_envs."""
     steps = 12

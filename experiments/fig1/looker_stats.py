@@ -14,7 +14,8 @@ pan, ``mixed`` otherwise. Runs of other methods get empty looker columns.
 and ``<!-- /NAME -->`` (``--marker NAME``), and ``--from-csv`` reads the rows from such a CSV instead of from
 run folders (from the repository root)::
 
-    python experiments/fig1/looker_stats.py experiments/fig1/runs/meta*/seed* --csv experiments/fig1/results/looker.csv
+    python experiments/fig1/looker_stats.py experiments/fig1/runs/meta_eps0.?_fov*/seed* \
+        --csv experiments/fig1/results/looker.csv
     python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv --doc docs/reproduction.md
 """
 
