@@ -62,7 +62,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
     state = None
     if resume:
         state = load_checkpoint(out / CHECKPOINT, config)
-        if config.frames < state["frames"]:
+        # a run overshoots its target by up to one iteration: resuming to that same target is fine
+        if config.frames < state["frames"] and config.frames != state["config"]["frames"]:
             raise ValueError(
                 f"frames={config.frames} is below the {state['frames']} frames the run in {str(out)!r} has trained: "
                 f"--frames is the total to train to, not an increment"

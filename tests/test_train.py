@@ -107,6 +107,17 @@ def test_resume_below_the_trained_frames_is_refused(tmp_path, capsys):
     assert (out / "config.yaml").read_text() == saved and not (out / "eval.json").exists()
 
 
+def test_resume_to_the_runs_own_target_after_it_overshot(tmp_path):
+    """A run stops up to one iteration past --frames; re-running its command with --resume (e.g. after a
+    Ctrl-C in its final evaluation) must not be refused as 'fewer frames than trained'."""
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "200", "--eval-episodes", "0")
+    trained = load_checkpoint(out / "checkpoint.pt")["frames"]
+    assert trained > 200  # 4 rooms x 8 steps per iteration: 7 iterations make 224
+    assert cli.main([*TINY, "--out", str(out), "--resume", "--method", "fixed_forward", "--frames", "200"]) == 0
+    assert load_checkpoint(out / "checkpoint.pt")["frames"] == trained
+    assert json.loads((out / "eval.json").read_text())["learned"]["episodes"] == 4
+
+
 @pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
 def test_cuda_without_a_gpu_is_refused_before_the_run_directory_is_made(tmp_path, capsys):
     assert cli.main([*TINY, "--out", str(tmp_path / "run"), "--device", "cuda"]) == 2
