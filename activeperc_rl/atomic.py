@@ -6,6 +6,7 @@ written to a temporary file beside its destination, flushed to disk, and renamed
 
 from __future__ import annotations
 
+import glob
 import os
 import tempfile
 from collections.abc import Iterator
@@ -43,3 +44,16 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def remove_leftovers(path: str | Path) -> list[Path]:
+    """Remove the temporary files that :func:`atomic_path` left beside ``path`` when its process was killed.
+
+    Only safe while no other process writes ``path`` (a run holds its directory's lock). Returns the
+    removed files.
+    """
+    path = Path(path)
+    leftovers = sorted(path.parent.glob(f".{glob.escape(path.name)}.*{glob.escape(path.suffix)}"))
+    for leftover in leftovers:
+        leftover.unlink(missing_ok=True)
+    return leftovers

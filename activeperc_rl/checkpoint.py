@@ -3,7 +3,7 @@
 ``checkpoint.pt`` is written to a temporary file in the same directory, flushed to disk and
 renamed over the old one (an atomic replace), so a kill at any moment leaves the previous
 checkpoint whole. ``metrics.csv`` gets one flushed row per iteration; on resume the rows
-written after the checkpoint are dropped, so ``frames`` stays monotone.
+written after the checkpoint (and a last row torn by a kill) are dropped, so ``frames`` stays monotone.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from activeperc_rl.config import TrainConfig
 CHECKPOINT = "checkpoint.pt"
 METRICS = "metrics.csv"
 CONFIG = "config.yaml"
+EVAL = "eval.json"
 METRIC_COLUMNS = ("frames", "iteration", "time_s", "fps", "success_rate", "mean_return", "episodes")
 
 
@@ -77,21 +78,37 @@ class MetricsLog:
     Args:
         path: the CSV file.
         keep_until: on resume, the checkpoint's frame count: rows beyond it are dropped (the file is
-            rewritten atomically); ``None`` starts a new file.
+            rewritten atomically); ``None`` starts a new file. A file that is not a metrics log, or a
+            row before the last that does not parse, is a ``ValueError`` naming the file and line.
     """
 
     def __init__(self, path: str | Path, keep_until: int | None = None):
         self.path = Path(path)
-        rows = []
-        if keep_until is not None and self.path.is_file():
-            with open(self.path, newline="") as f:
-                rows = [r for r in csv.DictReader(f) if int(r["frames"]) <= keep_until]
+        rows = self._read(keep_until) if keep_until is not None and self.path.is_file() else []
         with atomic_path(self.path) as temporary, open(temporary, "w", newline="") as f:
             writer = csv.DictWriter(f, METRIC_COLUMNS)
             writer.writeheader()
             writer.writerows(rows)
         self._file = open(self.path, "a", newline="")  # noqa: SIM115 - kept open for the run
         self._writer = csv.DictWriter(self._file, METRIC_COLUMNS)
+
+    def _read(self, keep_until: int) -> list[dict]:
+        """The rows up to ``keep_until`` frames; a torn last row (a kill mid-write) is dropped."""
+        with open(self.path, newline="") as f:
+            reader = csv.DictReader(f)
+            rows = list(reader)
+        if tuple(reader.fieldnames or ()) != METRIC_COLUMNS:
+            raise ValueError(f"{str(self.path)!r} is not a metrics log: its header is {reader.fieldnames}")
+        kept = []
+        for number, row in enumerate(rows, start=2):
+            whole = None not in row and None not in row.values() and row["frames"].isdigit()
+            if not whole:
+                if number == len(rows) + 1:
+                    break
+                raise ValueError(f"{str(self.path)!r}, line {number}: not a metrics row: {row}")
+            if int(row["frames"]) <= keep_until:
+                kept.append(row)
+        return kept
 
     def append(self, row: dict) -> None:
         """Write one row (keys: :data:`METRIC_COLUMNS`) and flush it."""

@@ -1,9 +1,9 @@
 """The training loop: one function, top to bottom (:func:`train`).
 
 A run directory holds ``config.yaml`` (the full config), ``metrics.csv`` (one row per iteration),
-``tb/`` (TensorBoard), ``checkpoint.pt`` (atomic; every ``checkpoint_every`` seconds, at the end
-and on Ctrl-C) and, after a finished run, ``eval.json`` (the learned and the random policy on
-held-out layouts).
+``tb/`` (TensorBoard), ``checkpoint.pt`` (atomic; when the run has started, every ``checkpoint_every``
+seconds, at the end and on Ctrl-C or SIGTERM) and, after a finished run, ``eval.json`` (the learned and
+the random policy on held-out layouts). One process at a time trains into it (``activeperc_rl.rundir``).
 
 Reproducibility: the same config on CPU gives the same run (networks, sampling and layouts are
 seeded from ``seed``). A resumed run continues the networks, optimizers and random-number state,
@@ -19,7 +19,7 @@ import signal
 import threading
 import time
 from collections import deque
-from contextlib import contextmanager
+from contextlib import ExitStack, closing, contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,8 @@ from activeperc_rl.checkpoint import (
 from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import make_method
+from activeperc_rl.rundir import check_fresh, claim_run_dir
+from activeperc_rl.workers import WorkerError
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
@@ -59,21 +61,26 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         ``"eval"``: ``{"learned": ..., "random": ...}`` as :func:`~activeperc_rl.evaluate.evaluate` gives them.
     """
     out = Path(out)
-    state = None
-    if resume:
-        state = load_checkpoint(out / CHECKPOINT, config)
-        # a run overshoots its target by up to one iteration: resuming to that same target is fine
-        if config.frames < state["frames"] and config.frames != state["config"]["frames"]:
-            raise ValueError(
-                f"frames={config.frames} is below the {state['frames']} frames the run in {str(out)!r} has trained: "
-                f"--frames is the total to train to, not an increment"
-            )
-    elif (out / CHECKPOINT).exists():
-        raise ValueError(f"{str(out)!r} already holds a run: pass --resume to continue it, or choose another --out")
+    if resume and not (out / CHECKPOINT).is_file():
+        raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
     device = resolve_device(config.device)
-    out.mkdir(parents=True, exist_ok=True)
-    save_yaml(config, out / CONFIG)
+    with claim_run_dir(out):
+        if resume:
+            state = load_checkpoint(out / CHECKPOINT, config)
+            # a run overshoots its target by up to one iteration: resuming to that same target is fine
+            if config.frames < state["frames"] and config.frames != state["config"]["frames"]:
+                raise ValueError(
+                    f"frames={config.frames} is below the {state['frames']} frames the run in {str(out)!r} has "
+                    f"trained: --frames is the total to train to, not an increment"
+                )
+        else:
+            check_fresh(out)
+            state = None
+        return _train(config, out, device, state, progress)
 
+
+def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | None, progress: bool) -> dict:
+    """:func:`train` in the claimed run directory ``out``, from the checkpoint ``state`` or afresh (``None``)."""
     keep_freed_memory()  # the learner's large tensors reuse freed memory instead of faulting in fresh pages
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)
@@ -87,13 +94,7 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         window.extend(state["window"])
         torch.set_rng_state(state["torch_rng"])
         method.env_seed = int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
-    method.start()
-
-    metrics = MetricsLog(out / METRICS, keep_until=frames if state is not None else None)
-    from torch.utils.tensorboard import SummaryWriter
-
-    # scalars are logged against frames: drop those written after the checkpoint
-    writer = SummaryWriter(str(out / "tb"), purge_step=frames + 1 if state is not None else None)
+    saved = {"frames": frames if state is not None else None}
 
     def checkpoint() -> None:
         save_checkpoint(
@@ -108,14 +109,33 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
                 "torch_rng": torch.get_rng_state(),
             },
         )
+        saved["frames"] = frames
 
-    bar = tqdm(total=config.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
-    last_checkpoint = time.monotonic()
-    try:
+    with ExitStack() as stack:
+        stack.callback(method.close)
+        method.start()
+        # nothing is written before the run has started; from then on the directory holds a checkpoint
+        save_yaml(config, out / CONFIG)
+        if state is None:
+            checkpoint()
+        resumed = state is not None
+        metrics = stack.enter_context(closing(MetricsLog(out / METRICS, keep_until=frames if resumed else None)))
+        from torch.utils.tensorboard import SummaryWriter
+
+        # scalars are logged against frames: drop those written after the checkpoint
+        writer = stack.enter_context(SummaryWriter(str(out / "tb"), purge_step=frames + 1 if resumed else None))
+        bar = stack.enter_context(
+            tqdm(total=config.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
+        )
+        last_checkpoint = time.monotonic()
         with _interruptible() as interrupted:
             while frames < config.frames and not interrupted():
                 start = time.perf_counter()
-                step = method.iterate()
+                try:
+                    step = method.iterate()
+                except WorkerError as error:
+                    kept = f"the checkpoint at {saved['frames']} frames is kept"
+                    raise WorkerError(f"{error}; {kept}: continue with --resume --out {out}") from None
                 seconds = time.perf_counter() - start
                 frames, iteration, elapsed = frames + step.frames, iteration + 1, elapsed + seconds
                 window.extend(step.returns)
@@ -142,11 +162,6 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
                     last_checkpoint = time.monotonic()
             checkpoint()
             was_interrupted = interrupted()
-    finally:
-        bar.close()
-        writer.close()
-        metrics.close()
-        method.close()
 
     result = {"frames": frames, "interrupted": was_interrupted, "metrics": str(out / METRICS)}
     if was_interrupted:
@@ -177,7 +192,10 @@ def load_run_config(out: str | Path) -> TrainConfig:
 
 @contextmanager
 def _interruptible():
-    """Turn the first Ctrl-C (SIGINT) into a flag the loop polls; a second one interrupts at once."""
+    """Turn the first Ctrl-C (SIGINT) or SIGTERM into a flag the loop polls; a second one interrupts at once.
+
+    SIGTERM is what ``kill``, ``docker stop``, systemd and batch schedulers send before they kill a job.
+    """
     flag = {"set": False}
     if threading.current_thread() is not threading.main_thread():
         yield lambda: False
@@ -187,13 +205,15 @@ def _interruptible():
         if flag["set"]:
             raise KeyboardInterrupt
         flag["set"] = True
-        print("\nCtrl-C: finishing this iteration, then saving a checkpoint (Ctrl-C again to abort)", flush=True)
+        name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        print(f"\n{name}: finishing this iteration, then saving a checkpoint ({name} again to abort)", flush=True)
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {number: signal.signal(number, handler) for number in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield lambda: flag["set"]
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for number, action in previous.items():
+            signal.signal(number, action)
 
 
 def _write_json(path: Path, values: dict) -> None:

@@ -14,8 +14,10 @@ once, joined along the rooms.
 - Own random streams: each worker seeds torch from ``torch_seed`` and its index, so a run repeats
   itself; its sampled actions differ from an in-process run's, whose actions come from the main
   process's stream.
-- Ctrl-C reaches the main process only (the workers ignore SIGINT), which saves its checkpoint and
-  then shuts the workers down; a worker whose main process is gone exits.
+- Ctrl-C and SIGTERM reach the main process only (the workers ignore both, even when they are sent
+  to the whole process group), which saves its checkpoint and then shuts the workers down; a worker
+  whose main process is gone exits. A worker that dies (killed, out of memory) is a
+  :class:`WorkerError` naming it and how it died.
 """
 
 from __future__ import annotations
@@ -36,6 +38,10 @@ from activeperc_env.core import usable_cpus
 
 TRAJ_IDS = ("collector", "traj_ids")
 START_TIMEOUT_S = 300.0
+
+
+class WorkerError(RuntimeError):
+    """A collector worker died, failed, or did not start; the message names the worker and the cause."""
 
 
 @dataclass
@@ -130,8 +136,11 @@ class ProcessCollector:
     def __next__(self) -> TensorDictBase:
         """Refresh the workers' weights, collect one rollout in every worker at once, and join them."""
         self._refresh()
-        for conn in self._conns:
-            conn.send("next")
+        for k, conn in enumerate(self._conns):
+            try:
+                conn.send("next")
+            except (BrokenPipeError, ConnectionResetError):
+                raise self._died(k) from None
         for k in range(self.workers):
             buffer = self._receive(k, "rollout")
             if buffer is not None:  # the first rollout: the worker's shared buffer, reused from then on
@@ -148,7 +157,7 @@ class ProcessCollector:
         for process in self._processes:
             process.join(timeout=30)
             if process.is_alive():
-                process.terminate()
+                process.kill()  # the workers ignore SIGTERM
                 process.join()
         for conn in self._conns:
             conn.close()
@@ -164,24 +173,33 @@ class ProcessCollector:
 
     def _receive(self, k: int, expected: str, timeout: float | None = None):
         """The payload of worker ``k``'s next message, which must be ``expected``; its error otherwise."""
-        conn, process = self._conns[k], self._processes[k]
+        conn = self._conns[k]
         try:
             if timeout is not None and not conn.poll(timeout):
-                raise RuntimeError(f"collector worker {k} did not start within {timeout:.0f} s")
+                raise WorkerError(f"collector worker {k} did not start within {timeout:.0f} s")
             kind, payload = conn.recv()
         except (EOFError, ConnectionResetError):
-            process.join(timeout=5)
-            raise RuntimeError(f"collector worker {k} died (exit code {process.exitcode})") from None
+            raise self._died(k) from None
         if kind == "error":
-            raise RuntimeError(f"collector worker {k} failed:\n{payload}")
+            raise WorkerError(f"collector worker {k} failed:\n{payload}")
         if kind != expected:
-            raise RuntimeError(f"collector worker {k} sent {kind!r} where {expected!r} was expected")
+            raise WorkerError(f"collector worker {k} sent {kind!r} where {expected!r} was expected")
         return payload
+
+    def _died(self, k: int) -> WorkerError:
+        """The error for worker ``k``, whose pipe closed: how its process ended."""
+        process = self._processes[k]
+        process.join(timeout=5)
+        code = process.exitcode
+        how = f"killed by {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}"
+        hint = " (the kernel's out-of-memory killer sends SIGKILL)" if code == -signal.SIGKILL else ""
+        return WorkerError(f"collector worker {k} died ({how}){hint}")
 
 
 def _work(conn, spec: _WorkerSpec) -> None:
     """A worker's life: build the env and collector of its rooms, then answer ``next`` until ``close``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     # llvmpipe draws with as many threads as there are cores unless told; share the cores among the workers
     os.environ.setdefault("LP_NUM_THREADS", str(spec.threads))
     from torchrl.collectors import Collector

@@ -83,7 +83,11 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     runs, results = tmp_path / "runs", tmp_path / "results"
     base = ["--only", "fixed_forward_fov60", "meta_eps0.1_fov100", "--seeds", "3", "--eval-episodes", "2"]
     base += ["--runs", str(runs), "--results", str(results), "--jobs", "2"]
+    killed_at_start = runs / "fixed_forward_fov60" / "seed3"  # a run killed before its first checkpoint
+    killed_at_start.mkdir(parents=True)
+    (killed_at_start / "config.yaml").write_text("method: fixed_forward\n")
     assert sweep.main([*base, "--frames", "64", *TINY]) == 0
+    assert "# removed config.yaml" in (killed_at_start / "train.log").read_text()
     rows = read_csv(results / "summary.csv")
     assert list(rows[0]) == list(sweep.SUMMARY_COLUMNS)
     keys = [(r["method"], r["fov"], r["seed"]) for r in rows]
@@ -187,6 +191,8 @@ def test_a_second_sweep_on_the_same_runs_is_refused(sweep, tmp_path, capsys):
             sweep.main(["--only", "joint_fov60", "--seeds", "0", "--runs", str(runs), "--results", str(tmp_path)])
     assert "another sweep.py is running" in capsys.readouterr().err
     assert sorted(p.name for p in runs.iterdir()) == [".sweep.lock"]  # nothing was started
+
+
 def test_ablations_are_listed_after_the_runs_of_the_config_they_change(aggregate):
     summary = [
         {"method": "meta_eps0.3", "fov": "60", "seed": "0"},

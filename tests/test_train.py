@@ -15,8 +15,10 @@ import torch
 import yaml
 
 from activeperc_rl import cli, evaluate
-from activeperc_rl.checkpoint import load_checkpoint, save_checkpoint
+from activeperc_rl import train as train_module
+from activeperc_rl.checkpoint import MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
+from activeperc_rl.rundir import claim_run_dir
 
 # A few thousand frames on tiny settings: short episodes so that some end inside the run.
 TINY = [
@@ -88,6 +90,68 @@ def test_resume_continues_to_the_new_budget(tmp_path):
     frames = [int(r["frames"]) for r in read_metrics(out)]
     assert frames[: len(before)] == [int(r["frames"]) for r in before]
     assert frames == sorted(set(frames)) and frames[-1] >= 768
+
+
+def test_a_fresh_run_leaves_an_earlier_runs_files_alone(tmp_path, capsys):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "metrics.csv").write_text("frames\n100\n")
+    (out / "config.yaml").write_text("method: meta\n")
+    assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 2
+    err = capsys.readouterr().err
+    assert "config.yaml, metrics.csv" in err and "no checkpoint.pt" in err
+    assert (out / "metrics.csv").read_text() == "frames\n100\n"
+
+
+def test_a_second_process_in_the_same_run_directory_is_refused(tmp_path, capsys):
+    out = tmp_path / "run"
+    with claim_run_dir(out):  # as another activeperc-train would hold it
+        assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 2
+    assert f"in use by another training process (pid {os.getpid()})" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == [".lock"]
+    run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # free again
+
+
+def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row(tmp_path):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    (out / ".checkpoint.pt.k1ll3d.pt").write_bytes(b"half a checkpoint")
+    with open(out / "metrics.csv", "a") as f:
+        f.write("9")  # the start of the row being written (frames 96) when the process was killed
+    assert cli.main(["--out", str(out), "--resume", "--frames", "128", "--no-progress"]) == 0
+    assert not (out / ".checkpoint.pt.k1ll3d.pt").exists()
+    frames = [int(r["frames"]) for r in read_metrics(out)]
+    assert frames == sorted(set(frames)) and frames[-1] >= 128
+
+
+def test_a_metrics_log_with_a_bad_row_is_named(tmp_path):
+    path = tmp_path / "metrics.csv"
+    path.write_text("frames,iteration,time_s,fps,success_rate,mean_return,episodes\n32,1,1,1,0,0,0\nx,2\n64,2,2,1,0,0,0\n")
+    with pytest.raises(ValueError, match=r"metrics.csv', line 3: not a metrics row"):
+        MetricsLog(path, keep_until=64)
+    path.write_text("step,loss\n1,2\n")
+    with pytest.raises(ValueError, match="is not a metrics log"):
+        MetricsLog(path, keep_until=64)
+
+
+def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "run"
+
+    def interrupted_start(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_module, "make_method", interrupted_start)
+    assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == [".lock"]
+    monkeypatch.undo()
+    run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # the same command again
+
+
+def test_an_unwritable_run_directory_is_one_line(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    assert cli.main([*TINY, "--out", str(tmp_path / "file" / "run"), "--frames", "64"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("activeperc-train: error:") and "file" in err and "Traceback" not in err
 
 
 def test_resume_with_other_options_names_them(tmp_path, capsys):

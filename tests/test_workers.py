@@ -19,7 +19,7 @@ from activeperc_rl import cli
 from activeperc_rl.checkpoint import load_checkpoint
 from activeperc_rl.envs import make_env
 from activeperc_rl.models import FixedLooker, make_actor, make_encoder
-from activeperc_rl.workers import ProcessCollector
+from activeperc_rl.workers import ProcessCollector, WorkerError
 
 SMALL = EnvConfig(max_cycles=6)
 
@@ -89,6 +89,55 @@ def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
     assert multiprocessing.active_children() == []
 
 
+def test_a_killed_worker_is_named_with_the_signal_that_killed_it():
+    policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
+    collector = ProcessCollector(policy, None, dataclasses.asdict(SMALL), 2, 4, 2, env_seed=0, torch_seed=0)
+    try:
+        next(collector)
+        collector._processes[1].kill()
+        collector._processes[1].join()
+        with pytest.raises(WorkerError, match=r"collector worker 1 died \(killed by SIGKILL\)"):
+            next(collector)
+    finally:
+        collector.shutdown()
+    assert multiprocessing.active_children() == []
+
+
+def worker_pids(parent: int) -> list[int]:
+    """Process ids of the collector workers that ``parent`` spawned."""
+    ps = subprocess.run(["ps", "-ww", "-e", "-o", "pid=,ppid=,args="], capture_output=True, text=True).stdout
+    return [int(line.split()[0]) for line in ps.splitlines() if int(line.split()[1]) == parent and "spawn_main" in line]
+
+
+def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_checkpoint(tmp_path):
+    out = tmp_path / "run"
+    command = [
+        sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
+        "--collect-workers", "2", "--method", "fixed_forward",
+    ]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(read_metrics(out) if (out / "metrics.csv").exists() else []) < 3:
+            time.sleep(0.2)
+        (worker, *_) = worker_pids(process.pid)
+        os.kill(worker, signal.SIGKILL)
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:  # no run left behind when the test fails
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 1, err
+    assert "Traceback" not in err
+    assert "died (killed by SIGKILL)" in err and f"continue with --resume --out {out}" in err
+    assert not survivors(process.pid), "a worker outlived the run"
+    trained = load_checkpoint(out / "checkpoint.pt")["frames"]
+    target = str(trained + 64)
+    assert cli.main(["--out", str(out), "--resume", "--frames", target, "--no-progress", "--eval-episodes", "0"]) == 0
+    assert int(read_metrics(out)[-1]["frames"]) >= trained + 64
+
+
 def test_training_with_workers_repeats_itself(tmp_path):
     runs = [
         run_cli(tmp_path, "--method", "meta", "--frames", "300", "--collect-workers", "2", name=f"r{i}")
@@ -103,8 +152,10 @@ def test_training_with_workers_repeats_itself(tmp_path):
             assert torch.equal(value, sb[name][key]), (name, key)
 
 
-def test_ctrl_c_in_the_terminal_stops_the_workers_and_saves(tmp_path):
-    """SIGINT to the whole process group (as a terminal's Ctrl-C) across curriculum's switch of environments."""
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop):
+    """SIGINT (a terminal's Ctrl-C) or SIGTERM (a scheduler's stop) to the whole process group, across
+    curriculum's switch of environments."""
     out = tmp_path / "run"
     command = [
         sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
@@ -118,7 +169,7 @@ def test_ctrl_c_in_the_terminal_stops_the_workers_and_saves(tmp_path):
     while time.monotonic() < deadline and len(rows) < 12:  # the switch to obstacles comes after 10 rows
         time.sleep(0.5)
         rows = read_metrics(out) if (out / "metrics.csv").exists() else []
-    os.killpg(process.pid, signal.SIGINT)
+    os.killpg(process.pid, stop)
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 0, output
     assert "checkpoint saved" in output

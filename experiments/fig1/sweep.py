@@ -48,6 +48,7 @@ import numpy as np
 
 from activeperc_env.core import usable_cpus
 from activeperc_rl.atomic import atomic_path
+from activeperc_rl.rundir import RUN_FILES
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
@@ -287,6 +288,12 @@ def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra)
     run_dir.mkdir(parents=True, exist_ok=True)
     command = train_command(task, run_dir, frames, eval_episodes, extra)
     log = open(run_dir / "train.log", "a")  # the child writes to its own copy; ours is closed below
+    if "--resume" not in command:  # a run killed as it started leaves files a fresh run refuses to overwrite
+        stale = [name for name in RUN_FILES if (run_dir / name).exists()]
+        for name in stale:
+            (run_dir / name).unlink()
+        if stale:
+            log.write(f"# removed {', '.join(stale)} of a run killed before its first checkpoint\n")
     log.write(f"$ {' '.join(command)}\n")
     log.flush()
     pin = (lambda: os.sched_setaffinity(0, cpus)) if cpus else None

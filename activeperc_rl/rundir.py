@@ -1,0 +1,61 @@
+"""The run directory's guards: one training process at a time, and no run overwritten by a fresh one.
+
+:func:`claim_run_dir` holds an advisory lock (``flock`` on ``RUN_DIR/.lock``) for as long as a
+process trains into the directory: a second ``activeperc-train`` with the same ``--out`` is refused
+instead of interleaving its rows and checkpoints with the first one's. The kernel drops the lock
+when its process dies, however it dies, so a killed run never leaves the directory locked. Holding
+the lock, the process also removes the temporary files that a killed writer left behind
+(:func:`~activeperc_rl.atomic.remove_leftovers`).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from activeperc_rl.atomic import remove_leftovers
+from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS
+
+LOCK = ".lock"
+RUN_FILES = (CHECKPOINT, CONFIG, METRICS, EVAL)
+"""The files a run writes; a fresh run starts only in a directory that holds none of them."""
+
+
+@contextmanager
+def claim_run_dir(out: str | Path) -> Iterator[Path]:
+    """Create ``out`` if needed and hold its lock for the block; ``ValueError`` when another process holds it."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+            raise ValueError(
+                f"{str(out)!r} is in use by another training process (pid {holder}): wait for it to end, "
+                f"or choose another --out"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        for name in RUN_FILES:
+            remove_leftovers(out / name)
+        yield out
+    finally:
+        os.close(fd)
+
+
+def check_fresh(out: str | Path) -> None:
+    """``ValueError`` when ``out`` holds files of a run, which a fresh run would overwrite."""
+    out = Path(out)
+    found = [name for name in RUN_FILES if (out / name).exists()]
+    if CHECKPOINT in found:
+        raise ValueError(f"{str(out)!r} already holds a run: pass --resume to continue it, or choose another --out")
+    if found:
+        raise ValueError(
+            f"{str(out)!r} holds {', '.join(found)} of an earlier run but no {CHECKPOINT} to resume from: "
+            f"move them away, or choose another --out"
+        )
