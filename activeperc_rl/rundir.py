@@ -48,10 +48,14 @@ def claim_run_dir(out: str | Path) -> Iterator[Path]:
         os.close(fd)
 
 
+def run_files(out: str | Path) -> list[str]:
+    """The names of :data:`RUN_FILES` that ``out`` holds."""
+    return [name for name in RUN_FILES if (Path(out) / name).exists()]
+
+
 def check_fresh(out: str | Path) -> None:
     """``ValueError`` when ``out`` holds files of a run, which a fresh run would overwrite."""
-    out = Path(out)
-    found = [name for name in RUN_FILES if (out / name).exists()]
+    found = run_files(out)
     if CHECKPOINT in found:
         raise ValueError(f"{str(out)!r} already holds a run: pass --resume to continue it, or choose another --out")
     if found:

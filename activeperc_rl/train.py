@@ -31,6 +31,7 @@ from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import (
     CHECKPOINT,
     CONFIG,
+    EVAL,
     METRICS,
     MetricsLog,
     load_checkpoint,
@@ -61,7 +62,7 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         ``"eval"``: ``{"learned": ..., "random": ...}`` as :func:`~activeperc_rl.evaluate.evaluate` gives them.
     """
     out = Path(out)
-    if resume and not (out / CHECKPOINT).is_file():
+    if resume and not (out / CHECKPOINT).is_file():  # checked before claiming, which would create the directory
         raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
     device = resolve_device(config.device)
     with claim_run_dir(out):
@@ -88,13 +89,14 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     method = make_method(config, device, start=False)
     frames, iteration, elapsed = 0, 0, 0.0
     window = deque(maxlen=config.success_window)
-    if state is not None:
+    resumed = state is not None
+    if resumed:
         method.load_state_dict(state["method"])
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
         window.extend(state["window"])
         torch.set_rng_state(state["torch_rng"])
         method.env_seed = int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
-    saved = {"frames": frames if state is not None else None}
+    saved = {"frames": frames}  # the frames of the checkpoint on disk
 
     def checkpoint() -> None:
         save_checkpoint(
@@ -116,9 +118,8 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         method.start()
         # nothing is written before the run has started; from then on the directory holds a checkpoint
         save_yaml(config, out / CONFIG)
-        if state is None:
+        if not resumed:
             checkpoint()
-        resumed = state is not None
         metrics = stack.enter_context(closing(MetricsLog(out / METRICS, keep_until=frames if resumed else None)))
         from torch.utils.tensorboard import SummaryWriter
 
@@ -173,7 +174,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
             "learned": evaluate(config, mover_policy, looker, config.eval_episodes, config.seed, device),
             "random": evaluate(config, None, None, config.eval_episodes, config.seed, device),
         }
-        _write_json(out / "eval.json", result["eval"] | {"frames": frames, "eval_seed": config.seed})
+        _write_json(out / EVAL, result["eval"] | {"frames": frames, "eval_seed": config.seed})
         for name, values in result["eval"].items():
             print(
                 f"{name:>8}: success rate {values['success_rate']:.3f}, mean return {values['mean_return']:.3f} "

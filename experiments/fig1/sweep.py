@@ -48,7 +48,7 @@ import numpy as np
 
 from activeperc_env.core import usable_cpus
 from activeperc_rl.atomic import atomic_path
-from activeperc_rl.rundir import RUN_FILES
+from activeperc_rl.rundir import run_files
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
@@ -289,7 +289,7 @@ def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra)
     command = train_command(task, run_dir, frames, eval_episodes, extra)
     log = open(run_dir / "train.log", "a")  # the child writes to its own copy; ours is closed below
     if "--resume" not in command:  # a run killed as it started leaves files a fresh run refuses to overwrite
-        stale = [name for name in RUN_FILES if (run_dir / name).exists()]
+        stale = run_files(run_dir)
         for name in stale:
             (run_dir / name).unlink()
         if stale:
