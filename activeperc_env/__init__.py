@@ -1,7 +1,8 @@
 """activeperc_env: the active-perception room of the meta-evaluation paper, for MARL and RL code.
 
 PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
-Gymnasium (registered on import): ``activeperc/Joint-v0``, ``activeperc/FixedForward-v0``.
+Gymnasium (registered on import): ``activeperc/Joint-v0``, ``activeperc/FixedForward-v0``; ``gymnasium.make_vec``
+steps all their rooms in one batched core (:class:`JointVectorEnv`, :class:`FixedForwardVectorEnv`).
 Batched core for training: :class:`Simulator`.
 """
 
@@ -14,12 +15,15 @@ import gymnasium  # noqa: E402
 from activeperc_env.config import EnvConfig  # noqa: E402
 from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator  # noqa: E402
 from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
+from activeperc_env.gym_vector import FixedForwardVectorEnv, JointVectorEnv  # noqa: E402
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, env, parallel_env, raw_env  # noqa: E402
 
 __all__ = [
     "EnvConfig",
     "FixedForwardEnv",
+    "FixedForwardVectorEnv",
     "JointEnv",
+    "JointVectorEnv",
     "LOOKER",
     "LOOKER_ACTIONS",
     "MOVER",
@@ -32,4 +36,8 @@ __all__ = [
 
 for _name, _entry in (("Joint-v0", "JointEnv"), ("FixedForward-v0", "FixedForwardEnv")):
     if f"activeperc/{_name}" not in gymnasium.registry:
-        gymnasium.register(f"activeperc/{_name}", entry_point=f"activeperc_env.gym_envs:{_entry}")
+        gymnasium.register(
+            f"activeperc/{_name}",
+            entry_point=f"activeperc_env.gym_envs:{_entry}",
+            vector_entry_point=f"activeperc_env.gym_vector:{_entry[:-3]}VectorEnv",
+        )

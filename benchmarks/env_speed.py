@@ -10,10 +10,13 @@ What it measures (random actions throughout, each figure timed for ``--seconds``
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
    over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
    only the rooms whose camera turned), then resetting and rendering the rooms that are done.
-3. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
+3. Gymnasium's vector API on ``activeperc/Joint-v0`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
+   one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
+   16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render.
+4. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
    (one render each), reset when an episode ends. It runs in a child process so that a GL failure
    there cannot stop our measurements; if it cannot run, the reason is printed instead.
-4. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
+5. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
    MiniWorld, the core at N=64 at least 3x MiniWorld.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra,
@@ -35,6 +38,7 @@ import time
 from collections.abc import Callable
 
 CORE_SIZES = (1, 16, 64)
+GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
 AEC_GOAL = 1.0  # the AEC env must reach this multiple of MiniWorld's steps/s
 CORE_GOAL = 3.0  # the core at N=64 must reach this multiple of MiniWorld's steps/s
 PEER_ENV = "MiniWorld-OneRoom-v0"
@@ -206,6 +210,26 @@ def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float
         sim.close()
 
 
+def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> float:
+    """Steps/s, summed over the rooms, of ``gymnasium.make_vec("activeperc/Joint-v0", 16)`` in ``mode``
+    (``"vector_entry_point"``: ours; ``"sync"``: Gymnasium's ``SyncVectorEnv``), random actions."""
+    import gymnasium
+    import numpy as np
+
+    env = gymnasium.make_vec("activeperc/Joint-v0", num_envs=GYM_VEC_SIZE, vectorization_mode=mode)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+
+    def step() -> int:
+        env.step(rng.integers(9, size=GYM_VEC_SIZE))  # both modes reset finished rooms at the next step
+        return GYM_VEC_SIZE
+
+    try:
+        return timed_rate(step, seconds, warmup)
+    finally:
+        env.close()
+
+
 def miniworld_worker(seconds: float, warmup: float, seed: int) -> None:
     """Child-process side: time MiniWorld's raw steps and print one tagged JSON line."""
     import pyglet
@@ -310,6 +334,12 @@ def main() -> None:
         ours[f"core_n{n}"] = bench_core(n, args.seconds, args.warmup, args.seed)
         label = f"core Simulator(num_envs={n})"
         print(f"ours  {label:<34}{ours[f'core_n{n}']:9.1f} cycles/s   (2 renders each)")
+    for mode, key, label in (
+        ("vector_entry_point", "gym_vector", "make_vec Joint-v0"),
+        ("sync", "gym_sync", "make_vec Joint-v0, mode sync"),
+    ):
+        ours[f"{key}_n{GYM_VEC_SIZE}"] = rate = bench_gym_vector(mode, args.seconds, args.warmup, args.seed)
+        print(f"ours  {label + f' N={GYM_VEC_SIZE}':<34}{rate:9.1f} steps/s    (1 render each)")
 
     peer, why = bench_miniworld(args.seconds, args.warmup, args.seed)
     peer_rate = peer["steps_per_s"] if peer else None

@@ -93,3 +93,11 @@ def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
     assert all(result[part] > 0 for part in ("move", "render", "look"))
     assert 0 < result["rest"] < result["total"]
     assert sum(result[part] for part in module.AEC_PARTS) + result["rest"] == pytest.approx(result["total"])
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
+def test_env_speed_times_both_gymnasium_vector_modes(mode):
+    spec = importlib.util.spec_from_file_location("env_speed", SCRIPT.with_name("env_speed.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.bench_gym_vector(mode, seconds=0.3, warmup=0.05, seed=0) > 0
