@@ -206,6 +206,29 @@ class Simulator:
         ids = self._as_ids(ids)
         return self._qpos[ids, self._ids.pan : self._ids.pan + 1].astype(np.float32)
 
+    def state(self, ids=None) -> np.ndarray:
+        """The rooms' true state, for centralised critics: (n, 8 + 2 * num_obstacles) float32.
+
+        Per room: the robot's x and y (metres, room centred at the origin), the cosine and sine of its heading,
+        the camera's pan (radians), the goal's x and y, each occluder's x and y, and ``cycle / max_cycles``.
+        Its bounds are :func:`activeperc_env.spaces.state_space`.
+        """
+        ids = self._as_ids(ids)
+        qpos, mocap = self._qpos[ids], self._mocap_pos[ids]
+        r = self._ids.root
+        heading = 2 * np.arctan2(qpos[:, r + 6], qpos[:, r + 3])
+        occluders = mocap[:, list(self._ids.occluders[: self.config.num_obstacles]), :2].reshape(len(ids), -1)
+        columns = [
+            qpos[:, r : r + 2],
+            np.cos(heading)[:, None],
+            np.sin(heading)[:, None],
+            qpos[:, self._ids.pan : self._ids.pan + 1],
+            mocap[:, self._ids.goal, :2],
+            occluders,
+            (self.cycle[ids] / self.config.max_cycles)[:, None],
+        ]
+        return np.concatenate(columns, axis=1).astype(np.float32)
+
     def render_map(self, index: int = 0) -> np.ndarray:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
         return self.renderer.render_map(

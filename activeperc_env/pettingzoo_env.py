@@ -14,7 +14,7 @@ from pettingzoo.utils import wrappers
 
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import Simulator
-from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space
+from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space, state_space
 from activeperc_env.viewer import HumanViewer
 
 MOVER, LOOKER = "mover_0", "looker_0"
@@ -37,6 +37,7 @@ class _Adapter:
         obs_space = observation_space(self.config)
         self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
         self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
+        self.state_space = state_space(self.config)
         self._viewer = HumanViewer() if render_mode == "human" else None
 
     def observation_space(self, agent):
@@ -46,6 +47,11 @@ class _Adapter:
     def action_space(self, agent):
         """The action space of ``agent`` (the same object on every call)."""
         return self.action_spaces[self._known(agent)]
+
+    def state(self) -> np.ndarray:
+        """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
+        heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
+        return self.sim.state()[0]
 
     def render(self):
         """``rgb_array``: the bird's-eye map (240x320x3); ``human``: MuJoCo's viewer."""

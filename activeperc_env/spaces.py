@@ -9,6 +9,7 @@ from gymnasium import spaces
 
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS
+from activeperc_env.names import ROOM_HALF_X, ROOM_HALF_Y
 
 
 def observation_space(config: EnvConfig) -> spaces.Dict:
@@ -20,6 +21,20 @@ def observation_space(config: EnvConfig) -> spaces.Dict:
             "pan": spaces.Box(-limit, limit, (1,), dtype=np.float32),
         }
     )
+
+
+def state_space(config: EnvConfig) -> spaces.Box:
+    """``Box(float32, (8 + 2 * num_obstacles,))``: the layout of :meth:`activeperc_env.Simulator.state`.
+
+    Robot x, y; cos and sin of its heading; pan; goal x, y; each occluder's x, y; ``cycle / max_cycles``.
+    Positions lie inside the room (x in [-3, 3], y in [-2, 2] metres), the pan within ``pan_range``.
+    """
+    limit = math.radians(config.pan_range)
+    room = [ROOM_HALF_X, ROOM_HALF_Y]
+    high = np.array(room + [1.0, 1.0, limit] + room * (1 + config.num_obstacles) + [1.0], dtype=np.float32)
+    low = -high
+    low[-1] = 0.0
+    return spaces.Box(low, high, dtype=np.float32)
 
 
 def mover_space() -> spaces.Discrete:

@@ -12,6 +12,7 @@ from pettingzoo.test import (
     parallel_seed_test,
     render_test,
     seed_test,
+    state_test,
 )
 from pettingzoo.utils import wrappers
 
@@ -136,3 +137,32 @@ def test_observations_are_the_callers_own():
         mover["image"][:] = 0
         mover["pan"][:] = 9.0
         assert np.array_equal(looker["image"], before) and looker["pan"][0] != 9.0
+
+
+def test_state_test_passes_without_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        state_test(activeperc_env.env(), activeperc_env.parallel_env(), num_cycles=150)
+
+
+@pytest.mark.parametrize("num_obstacles", [0, 3, 6])
+def test_state_is_the_true_layout_and_the_same_in_both_envs(num_obstacles):
+    aec = activeperc_env.env(num_obstacles=num_obstacles, max_cycles=40, pan_range=60)
+    par = activeperc_env.parallel_env(num_obstacles=num_obstacles, max_cycles=40, pan_range=60)
+    aec.reset(seed=4)
+    par.reset(seed=4)
+    assert aec.state_space == par.state_space and aec.state_space.shape == (8 + 2 * num_obstacles,)
+    sim = aec.unwrapped.sim
+    rng = np.random.default_rng(0)
+    for cycle in range(1, 13):
+        move, look = goal_seeking_move(sim), int(rng.integers(3))
+        aec.step(move)
+        aec.step(look)
+        par.step({MOVER: move, LOOKER: look})
+        state = aec.state()
+        assert state.dtype == np.float32 and aec.state_space.contains(state)
+        np.testing.assert_array_equal(state, par.state())
+        xy, heading, pan = sim.pose()
+        expected = [*xy, np.cos(heading), np.sin(heading), pan, *sim.goal_xy(), *sim.occluders_xy().ravel(), cycle / 40]
+        np.testing.assert_allclose(state, np.array(expected, dtype=np.float32), rtol=0, atol=1e-6)
+    assert abs(state[4]) > 0  # the random looks turned the camera

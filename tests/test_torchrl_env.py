@@ -229,3 +229,14 @@ def test_pettingzoo_wrapper_aec():
     assert data["mover_0", "observation", "image"].shape == (14, 1, 60, 80, 3)
     assert (data["mover_0", "observation", "pan"][6] == 0).all()
     env.close()
+
+
+def test_pettingzoo_wrapper_reads_the_global_state():
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="PettingZoo in TorchRL is tested")
+        env = PettingZooWrapper(activeperc_env.parallel_env(max_cycles=3), return_state=True)
+    check_env_specs(env, seed=0)
+    data = env.rollout(3)
+    assert data["state"].shape == (3, 14) and data["next", "state"].shape == (3, 14)
+    assert torch.equal(data["next", "state"][:, -1], torch.tensor([1, 2, 3]) / 3)  # cycle / max_cycles
+    env.close()
