@@ -78,7 +78,6 @@ class Simulator:
         self._tiles = np.full(num_envs, -1)
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
-        self.seeds = np.zeros(num_envs, dtype=np.int64)
         self._rngs = [np.random.default_rng() for _ in range(num_envs)]
         wheel = self.config.forward_speed / names.WHEEL_RADIUS
         turn = math.radians(self.config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -18,6 +19,7 @@ from activeperc_env.core import Simulator
 from activeperc_env.gym_envs import HOLD
 from activeperc_env.spaces import mover_space, observation_space
 
+MAX_SEED = 2**63 - 1  # seeds are kept as int64
 
 class _SingleAgentVectorEnv(VectorEnv):
     """N rooms of a single-agent view; subclasses map the agent's actions to moves and looks.
@@ -29,6 +31,9 @@ class _SingleAgentVectorEnv(VectorEnv):
             ``SyncVectorEnv``), ``SAME_STEP`` (``info["final_obs"]`` and ``info["final_info"]`` hold what the
             finished rooms ended with) or ``DISABLED`` (reset finished rooms with ``options={"reset_mask": m}``).
         nthread: physics threads (0 uses every core).
+        max_episode_steps: what ``gymnasium.make(..., max_episode_steps=k)`` does with its ``TimeLimit``: an
+            episode is also truncated after ``k`` steps (``max_cycles`` stays the env's own end and the reward's T).
+        disable_env_checker: accepted as ``gymnasium.make`` accepts it; a vector env has no checker to disable.
         **config: fields of :class:`activeperc_env.EnvConfig`.
     """
 
@@ -40,6 +45,8 @@ class _SingleAgentVectorEnv(VectorEnv):
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         nthread: int = 0,
+        max_episode_steps: int | None = None,
+        disable_env_checker: bool = False,
         **config,
     ):
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -54,6 +61,9 @@ class _SingleAgentVectorEnv(VectorEnv):
             raise ValueError(f"autoreset_mode={autoreset_mode!r} is invalid: expected one of {modes}") from None
         if not is_int(nthread) or nthread < 0:
             raise ValueError(f"nthread={nthread!r} is invalid: expected an int >= 0")
+        if max_episode_steps is not None and (not is_int(max_episode_steps) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps={max_episode_steps!r} is invalid: expected None or an int >= 1")
+        self.max_episode_steps = max_episode_steps
         self.config = EnvConfig.from_kwargs(**config)
         self.sim = Simulator(self.config, num_envs=num_envs, nthread=nthread)
         self.num_envs = self.sim.num_envs
@@ -65,6 +75,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)  # rooms whose episode ended at the last step
+        self._started = False  # reset() was called
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Start episodes in every room, or in those of ``options["reset_mask"]``.
@@ -72,11 +83,15 @@ class _SingleAgentVectorEnv(VectorEnv):
         Args:
             seed: ``None`` (each room draws its layout from its own stream), an int ``s`` (room ``i`` gets
                 ``s + i``, as in ``SyncVectorEnv``) or one int or ``None`` per room.
-            options: ``{"reset_mask": (N,) bool array}`` resets only the rooms marked ``True``.
+            options: ``{"reset_mask": (N,) bool array}`` resets only the rooms marked ``True``; as Gymnasium's
+                vector envs do, the mask is taken out of ``options``.
         """
         seeds = self._seeds(seed)
         mask = self._reset_mask(options)
-        super().reset(seed=seed if is_int(seed) else None)
+        if not self._started and not mask.all():
+            raise ResetNeeded("the first reset() must start every room: options['reset_mask'] is for later resets")
+        super().reset(seed=int(seed) if is_int(seed) else None)
+        self._started = True
         ids = np.flatnonzero(mask)
         seeded = np.array([seeds[i] is not None for i in ids], dtype=bool)
         if seeded.any():
@@ -92,6 +107,8 @@ class _SingleAgentVectorEnv(VectorEnv):
         Under ``NEXT_STEP`` a room whose episode ended at the previous step is reset instead (reward 0,
         not terminated, not truncated, ``info["cycle"]`` 0), as ``SyncVectorEnv`` does.
         """
+        if not self._started:
+            raise ResetNeeded("step() before reset(): call reset() first")
         actions = self._check_actions(actions)
         moves, looks = self._split(actions)
         if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
@@ -108,6 +125,8 @@ class _SingleAgentVectorEnv(VectorEnv):
             result = self.sim.move(moves[play], ids=play)
             self.sim.look(looks[play], ids=play)
             rewards[play], terminated[play], truncated[play] = result.reward, result.terminated, result.truncated
+            if self.max_episode_steps is not None:
+                truncated[play] |= self.sim.cycle[play] >= self.max_episode_steps
         if restart.any():
             self.sim.reset(np.flatnonzero(restart))
         self._ended = terminated | truncated
@@ -122,6 +141,8 @@ class _SingleAgentVectorEnv(VectorEnv):
         """``rgb_array``: one (240, 320, 3) bird's-eye map per room, as ``SyncVectorEnv`` gives; else ``None``."""
         if self.render_mode != "rgb_array":
             return None
+        if not self._started:
+            raise ResetNeeded("render() before reset(): call reset() first")
         return tuple(self.sim.render_map(i) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs) -> None:
@@ -148,23 +169,31 @@ class _SingleAgentVectorEnv(VectorEnv):
         }
 
     def _seeds(self, seed) -> list[int | None]:
+        """One seed or ``None`` per room, checked before any room is reseeded."""
         if seed is None:
             return [None] * self.num_envs
         if is_int(seed):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed) if isinstance(seed, (list, tuple, np.ndarray)) else None
-        if seeds is None or len(seeds) != self.num_envs or not all(s is None or is_int(s) for s in seeds):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        elif isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == self.num_envs:
+            seeds = [int(s) if is_int(s) else s for s in seed]
+        else:
             raise ValueError(
                 f"seed={seed!r} is invalid: expected None, an int or a list of {self.num_envs} ints or None"
             )
-        return [None if s is None else int(s) for s in seeds]
+        for room, s in enumerate(seeds):
+            if s is not None and not (is_int(s) and 0 <= s <= MAX_SEED):
+                raise ValueError(f"seed {s!r} of room {room} is invalid: expected None or an int in [0, 2**63 - 1]")
+        return seeds
 
     def _reset_mask(self, options: dict | None) -> np.ndarray:
-        mask = (options or {}).get("reset_mask")
+        """``options["reset_mask"]`` taken out of ``options`` and checked (as ``SyncVectorEnv`` does), or all rooms."""
+        mask = options.pop("reset_mask", None) if options is not None else None
         if mask is None:
             return np.ones(self.num_envs, dtype=bool)
-        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
-            raise ValueError(f"options['reset_mask']={mask!r} is invalid: expected a ({self.num_envs},) bool array")
+        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_:
+            raise TypeError(f"options['reset_mask']={mask!r} is invalid: expected a ({self.num_envs},) bool array")
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] has shape {mask.shape}: expected ({self.num_envs},)")
         if not mask.any():
             raise ValueError("options['reset_mask'] marks no room: expected at least one True")
         return mask

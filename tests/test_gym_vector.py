@@ -12,13 +12,14 @@ IDS = ["activeperc/Joint-v0", "activeperc/FixedForward-v0"]
 
 
 def assert_same_observations(ours, theirs):
-    """Same pan angles; same images up to the rasteriser's rounding (a room of ours is drawn in its own tile)."""
+    """Same pan angles; same images up to the rasteriser's rounding (a room of ours is drawn in its own tile):
+    a differing pixel differs by one shade level, and few pixels differ (up to a few percent of a view)."""
     assert set(ours) == set(theirs) == {"image", "pan"}
     np.testing.assert_array_equal(ours["pan"], theirs["pan"])
     assert ours["image"].shape == theirs["image"].shape and ours["image"].dtype == theirs["image"].dtype
     diff = np.abs(ours["image"].astype(int) - theirs["image"].astype(int))
     assert diff.max() <= 1
-    assert (diff > 0).mean() < 1e-3
+    assert (diff > 0).mean() < 0.05
 
 
 def assert_same_infos(ours, theirs):
@@ -124,10 +125,20 @@ def test_bad_input_is_named():
         vec.step(np.array([0.5, 1.0]))
     with pytest.raises(ValueError, match=r"seed=\[1\] is invalid"):
         vec.reset(seed=[1])
-    with pytest.raises(ValueError, match=r"reset_mask.*is invalid: expected a \(2,\) bool array"):
+    first = vec.unwrapped.sim.state()
+    with pytest.raises(ValueError, match=r"seed -1 of room 1 is invalid"):
+        vec.reset(seed=[1, -1])
+    np.testing.assert_array_equal(vec.unwrapped.sim.state(), first)  # no room was reseeded
+    with pytest.raises(ValueError, match=r"seed 9223372036854775808 of room 1 is invalid"):
+        vec.reset(seed=2**63 - 1)
+    with pytest.raises(TypeError, match=r"reset_mask.*is invalid: expected a \(2,\) bool array"):
         vec.reset(options={"reset_mask": [True, False]})
+    with pytest.raises(ValueError, match=r"reset_mask'\] has shape \(3,\)"):
+        vec.reset(options={"reset_mask": np.ones(3, dtype=bool)})
     with pytest.raises(ValueError, match="marks no room"):
         vec.reset(options={"reset_mask": np.zeros(2, dtype=bool)})
+    with pytest.raises(ValueError, match="max_episode_steps=0 is invalid"):
+        gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, max_episode_steps=0)
     vec.close()
     with pytest.raises(ValueError, match="autoreset_mode='sometimes' is invalid"):
         activeperc_env.JointVectorEnv(num_envs=2, autoreset_mode="sometimes")
@@ -137,6 +148,39 @@ def test_bad_input_is_named():
         gymnasium.make_vec("activeperc/Joint-v0", num_envs=0)
     with pytest.raises(ValueError, match="fov=500"):
         gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, fov=500)
+
+
+def test_step_or_render_before_reset_is_refused():
+    vec = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, render_mode="rgb_array")
+    with pytest.raises(gymnasium.error.ResetNeeded, match="step\\(\\) before reset"):
+        vec.step(np.array([0, 1]))
+    with pytest.raises(gymnasium.error.ResetNeeded, match="render\\(\\) before reset"):
+        vec.render()
+    with pytest.raises(gymnasium.error.ResetNeeded, match="first reset\\(\\) must start every room"):
+        vec.reset(options={"reset_mask": np.array([True, False])})
+    vec.reset(seed=np.int64(3))  # a numpy int is a seed too
+    reference = activeperc_env.Simulator(num_envs=2)
+    reference.reset(seeds=[3, 4])
+    np.testing.assert_array_equal(vec.unwrapped.sim.state(), reference.state())
+    vec.close()
+
+
+def test_max_episode_steps_truncates_as_gymnasium_make_does():
+    kwargs = {"num_envs": 2, "max_episode_steps": 3, "disable_env_checker": True, "max_cycles": 5}
+    ours = gymnasium.make_vec("activeperc/FixedForward-v0", **kwargs)
+    theirs = gymnasium.make_vec("activeperc/FixedForward-v0", vectorization_mode="sync", **kwargs)
+    ours.reset(seed=0)
+    theirs.reset(seed=0)
+    truncated = []
+    for _ in range(8):
+        mine, other = ours.step(np.array([0, 1])), theirs.step(np.array([0, 1]))
+        for k in (1, 2, 3):
+            np.testing.assert_array_equal(mine[k], other[k])
+        assert_same_infos(mine[4], other[4])
+        truncated.append(bool(mine[3].all()))
+    assert truncated == [False, False, True, False, False, False, True, False]  # step 4 and 8 restart the rooms
+    ours.close()
+    theirs.close()
 
 
 def test_observations_are_the_callers_own_and_render_gives_every_map():
@@ -164,3 +208,18 @@ def test_gymnasium_vector_wrappers_count_episodes():
     np.testing.assert_array_equal(info["episode"]["l"], [3, 3])
     np.testing.assert_array_equal(info["episode"]["r"], [0.0, 0.0])
     vec.close()
+
+
+def test_torchrl_gym_wrapper_runs_it_with_autoreset_disabled():
+    import torch
+    from torchrl.envs import GymWrapper
+    from torchrl.envs.utils import check_env_specs
+
+    vec = gymnasium.make_vec("activeperc/FixedForward-v0", num_envs=3, max_cycles=4, autoreset_mode="Disabled")
+    env = GymWrapper(vec)
+    check_env_specs(env, seed=0)
+    data = env.rollout(10, break_when_any_done=False)  # TorchRL resets the finished rooms through reset_mask
+    done = data["next", "done"].squeeze(-1)
+    assert torch.equal(done, (torch.arange(10) % 4 == 3).expand(3, 10))
+    assert data["image"].shape == (3, 10, 60, 80, 3)
+    env.close()
