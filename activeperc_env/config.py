@@ -26,7 +26,7 @@ class EnvConfig:
     """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
     goal_distance: float = 3.0
     """Distance along the room (x) between the robot's start and the goal, in metres: each is drawn
-    within 0.3 m of -+goal_distance / 2 and their y anywhere across the room (2.5 to 4.6; the room is 6 m
+    within 0.3 m of -+goal_distance / 2 and their y anywhere but 0.5 m from the side walls (2.5 to 4.6; the room is 6 m
     long). 4.6 puts them at its two ends; below 3, five or six occluders take many draws to fit."""
     max_cycles: int = 150
     """Cycles (one move and one look each) before the episode is truncated."""

@@ -35,6 +35,8 @@ class MoveResult:
 
     reward: np.ndarray
     """The mover's reward ``r(s, u_m)``: ``1 - 0.2 t / T`` on success, else 0 (float32)."""
+    looker_reward: np.ndarray
+    """The looker's reward for the same cycle: the mover's (``looker_reward='shared'``) or 0 (``'none'``)."""
     terminated: np.ndarray
     """The robot reached the goal."""
     truncated: np.ndarray
@@ -148,7 +150,8 @@ class Simulator:
         reward = np.where(success, 1.0 - 0.2 * frac, 0.0).astype(np.float32)
         truncated = ~success & (self.cycle[ids] >= self.config.max_cycles)
         self.done[ids] = success | truncated
-        return MoveResult(reward=reward, terminated=success, truncated=truncated)
+        looker_reward = reward.copy() if self.config.looker_reward == "shared" else np.zeros_like(reward)
+        return MoveResult(reward=reward, looker_reward=looker_reward, terminated=success, truncated=truncated)
 
     def look(self, actions, ids=None) -> None:
         """The looker's half of a cycle: turn the camera; no time passes, the base stays put.

@@ -16,18 +16,9 @@ import numpy as np
 
 from activeperc_env.config import EnvConfig
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, parallel_env
+from activeperc_env.render import side_by_side
 
 STRIP_CYCLES = 8
-
-
-def side_by_side(map_image: np.ndarray, view: np.ndarray) -> np.ndarray:
-    """The map with the first-person view scaled to its height on its right."""
-    scale = max(1, map_image.shape[0] // view.shape[0])
-    big = view.repeat(scale, axis=0).repeat(scale, axis=1)
-    canvas = np.zeros((map_image.shape[0], map_image.shape[1] + big.shape[1], 3), dtype=np.uint8)
-    canvas[:, : map_image.shape[1]] = map_image
-    canvas[: big.shape[0], map_image.shape[1] :] = big
-    return canvas
 
 
 def main(argv: list[str] | None = None) -> int:

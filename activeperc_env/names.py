@@ -18,7 +18,6 @@ EYE_CAMERA = "eye"
 MAP_CAMERA = "map"
 GOAL_BODY = "goal"
 OCCLUDER_BODIES = tuple(f"occluder_{i}" for i in range(6))
-OCCLUDER_COLORS = ("green", "yellow", "blue", "green", "yellow", "blue")
 
 # geom group holding the robot's own visuals: hidden in its first-person view
 ROBOT_GROUP = 2

@@ -80,7 +80,7 @@ class _Adapter:
         return agent
 
 
-class raw_env(_Adapter, AECEnv):  # noqa: N801 (PettingZoo's naming convention)
+class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
     """The active-perception room as a PettingZoo AEC env.
 
     Description:
@@ -153,8 +153,7 @@ class raw_env(_Adapter, AECEnv):  # noqa: N801 (PettingZoo's naming convention)
         self._cumulative_rewards[agent] = 0.0
         if agent == MOVER:
             result = self.sim.move(np.array([action]))
-            reward = float(result.reward[0])
-            self.rewards = {MOVER: reward, LOOKER: reward if self.config.looker_reward == "shared" else 0.0}
+            self.rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
             self._pending = (bool(result.terminated[0]), bool(result.truncated[0]))
             self._obs[LOOKER] = self._observe_now()
             self.agent_selection = LOOKER
@@ -171,7 +170,7 @@ class raw_env(_Adapter, AECEnv):  # noqa: N801 (PettingZoo's naming convention)
             self.render()
 
 
-class parallel_env(_Adapter, ParallelEnv):  # noqa: N801 (PettingZoo's naming convention)
+class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
     """The active-perception room as a PettingZoo parallel env.
 
     Both agents act on the same observation; the look is applied after the move, and both
@@ -205,8 +204,7 @@ class parallel_env(_Adapter, ParallelEnv):  # noqa: N801 (PettingZoo's naming co
         result = self.sim.move(np.array([move]))
         self.sim.look(np.array([look]))
         obs = self._observe_now()
-        reward = float(result.reward[0])
-        rewards = {MOVER: reward, LOOKER: reward if self.config.looker_reward == "shared" else 0.0}
+        rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
         agents = self.agents
         if terminated or truncated:

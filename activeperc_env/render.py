@@ -181,6 +181,16 @@ class TiledRenderer:
         self.close()
 
 
+def side_by_side(map_image: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """A video frame: the bird's-eye map with the first-person view on its right, scaled up to the map's height."""
+    scale = max(1, map_image.shape[0] // view.shape[0])
+    big = view.repeat(scale, axis=0).repeat(scale, axis=1)
+    canvas = np.zeros((map_image.shape[0], map_image.shape[1] + big.shape[1], 3), dtype=np.uint8)
+    canvas[:, : map_image.shape[1]] = map_image
+    canvas[: big.shape[0], map_image.shape[1] :] = big
+    return canvas
+
+
 def _fixed_camera(model: mujoco.MjModel, name: str) -> mujoco.MjvCamera:
     """An ``MjvCamera`` that looks through the model's named camera."""
     cam = mujoco.MjvCamera()

@@ -40,7 +40,7 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
         raise ValueError(f"no checkpoint at {str(path)!r}")
     try:
         state = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as error:  # noqa: BLE001 - any unpickling failure means an unusable file
+    except Exception as error:  # any unpickling failure means an unusable file
         raise ValueError(f"checkpoint {str(path)!r} cannot be read: {error}") from error
     if not isinstance(state, dict) or "config" not in state or "method" not in state:
         raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
@@ -64,10 +64,10 @@ RESUMABLE = (
 """Options a resumed run may change; every other one must match the checkpoint's."""
 
 
-def config_differences(saved: TrainConfig, config: TrainConfig, free=RESUMABLE) -> list[str]:
-    """Human-readable ``name: saved -> new`` for every option that differs, except those in ``free``."""
+def config_differences(saved: TrainConfig, config: TrainConfig) -> list[str]:
+    """Human-readable ``name: saved -> new`` for every option that differs, except those in ``RESUMABLE``."""
     old, new = saved.to_dict(), config.to_dict()
-    differ = [f"{k}: {old[k]!r} -> {new[k]!r}" for k in old if k not in free and k != "env" and old[k] != new[k]]
+    differ = [f"{k}: {old[k]!r} -> {new[k]!r}" for k in old if k not in RESUMABLE and k != "env" and old[k] != new[k]]
     differ += [f"env.{k}: {v!r} -> {new['env'][k]!r}" for k, v in old["env"].items() if new["env"][k] != v]
     return differ
 
@@ -89,7 +89,7 @@ class MetricsLog:
             writer = csv.DictWriter(f, METRIC_COLUMNS)
             writer.writeheader()
             writer.writerows(rows)
-        self._file = open(self.path, "a", newline="")  # noqa: SIM115 - kept open for the run
+        self._file = open(self.path, "a", newline="")  # kept open for the run
         self._writer = csv.DictWriter(self._file, METRIC_COLUMNS)
 
     def _read(self, keep_until: int) -> list[dict]:

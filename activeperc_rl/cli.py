@@ -18,11 +18,18 @@ import time
 from pathlib import Path
 
 from activeperc_env import EnvConfig
+from activeperc_env.config import LOOKER_REWARDS
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml
 from activeperc_rl.workers import WorkerError
 
-CHOICES = {"method": METHODS, "device": DEVICES, "mover_rollouts": MOVER_ROLLOUTS, "e1_looks": E1_LOOKS}
+CHOICES = {
+    "method": METHODS,
+    "device": DEVICES,
+    "mover_rollouts": MOVER_ROLLOUTS,
+    "e1_looks": E1_LOOKS,
+    "looker_reward": LOOKER_REWARDS,
+}
 
 
 def field_docs(cls) -> dict[str, str]:

@@ -19,6 +19,7 @@ import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 
 from activeperc_env.config import is_int
+from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
@@ -119,14 +120,8 @@ def load_policy(path: str | Path, device="cpu"):
 
 
 def _video_frame(env, td) -> np.ndarray:
-    """Room 0's first-person view (upscaled to the map's height) beside its bird's-eye map."""
-    view = td.get(("next", MOVER, "observation", "image"))[0].cpu().numpy()
-    top = env.sim.render_map(0)
-    scale = max(1, top.shape[0] // view.shape[0])
-    view = view.repeat(scale, axis=0).repeat(scale, axis=1)
-    pad = np.zeros((top.shape[0], view.shape[1], 3), dtype=np.uint8)
-    pad[: view.shape[0]] = view[: top.shape[0]]
-    return np.concatenate([pad, top], axis=1)
+    """Room 0's bird's-eye map with its first-person view on the right."""
+    return side_by_side(env.sim.render_map(0), td.get(("next", MOVER, "observation", "image"))[0].cpu().numpy())
 
 
 def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:

@@ -38,6 +38,7 @@ from activeperc_rl.losses import MetaEvaluationLoss
 from activeperc_rl.models import (
     HOLD,
     JOINT,
+    NUM_ACTIONS,
     EpsilonGreedyLooker,
     FixedLooker,
     make_actor,
@@ -69,10 +70,9 @@ class Method:
         device: where the networks run.
     """
 
-    def __init__(self, config: TrainConfig, device: torch.device, collect: bool = True):
+    def __init__(self, config: TrainConfig, device: torch.device):
         self.config = config
         self.device = device
-        self.collect = collect
         self.env_seed = config.seed
         self.collectors: list[Collector | ProcessCollector] = []
         self._iterators: dict[int, object] = {}
@@ -104,7 +104,9 @@ class Method:
         loss.make_value_estimator(ValueEstimators.GAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
         return loss
 
-    def _actor_critic(self, name: str, agent: str, lr: float, action_agent: str | None = None, num_actions: int = 3):
+    def _actor_critic(
+        self, name: str, agent: str, lr: float, action_agent: str | None = None, num_actions: int = NUM_ACTIONS
+    ):
         """An actor and a critic on ``agent``'s view sharing one encoder, their A2C loss, and optimizer ``name``.
 
         The networks are registered as ``{name}_actor`` and ``{name}_critic``; the actor's action lies
@@ -269,7 +271,7 @@ class IA2C(_MoverA2C):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        self.looker_actor, self.looker_critic, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
+        self.looker_actor, _, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
         start_holding(self.looker_actor, config.looker_hold_prob)
 
     def start(self) -> None:
@@ -297,8 +299,8 @@ class Joint(Method):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        self.actor, self.critic, self.loss = self._actor_critic(
-            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=9
+        self.actor, _, self.loss = self._actor_critic(
+            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=NUM_ACTIONS * NUM_ACTIONS
         )
         start_holding(self.actor, config.looker_hold_prob)
         self.joint_policy = make_joint_policy(self.actor)

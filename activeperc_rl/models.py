@@ -16,11 +16,11 @@ from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_env import EnvConfig
+from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig
 
 JOINT = "joint"
-NUM_ACTIONS = 3
-HOLD = 1  # the look that keeps the camera where it is
+NUM_ACTIONS = len(MOVER_ACTIONS)  # the looker has as many (LOOKER_ACTIONS)
+HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 
 
 class Encoder(nn.Module):
@@ -153,15 +153,11 @@ class EpsilonGreedyLooker(nn.Module):
 
 
 class FixedLooker(nn.Module):
-    """Writes the same look for every room (``1``, 'hold', keeps the camera forward)."""
-
-    def __init__(self, action: int = HOLD):
-        super().__init__()
-        self.action = action
+    """Writes 'hold' for every room: the camera stays forward."""
 
     def forward(self, tensordict):
-        """Write the constant action into ``tensordict``."""
-        action = torch.full(tuple(tensordict.batch_size), self.action, device=tensordict.device)
+        """Write 'hold' into ``tensordict``."""
+        action = torch.full(tuple(tensordict.batch_size), HOLD, device=tensordict.device)
         tensordict.set(("looker", "action"), action)
         return tensordict
 

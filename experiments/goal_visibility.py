@@ -5,8 +5,8 @@ first-person image is rendered through the batched core. The goal counts as visi
 least ``--min-pixels`` pixels are goal-red. The fraction of seeds in which it is NOT visible is
 measured at each field of view, with the default config (``num_obstacles=3``) and with an
 empty room (``num_obstacles=0``): the empty room separates the share due to the start heading
-from the share due to the occluders. Start, heading and goal are drawn before the occluders,
-so a seed gives the same start and goal with and without occluders.
+from the share due to the occluders. (The two rooms of a seed need not share a start: a draw whose
+occluders do not fit is redrawn whole, so with occluders a seed often starts elsewhere.)
 
 The looker could turn the camera before the robot moves, so the script also sweeps the pan
 over ``k * pan_step`` (clipped to ``[-pan_range, +pan_range]``) with ``Simulator.look`` and
