@@ -26,6 +26,7 @@ from activeperc_env.render import TiledRenderer
 
 MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
+HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
 
 

@@ -6,11 +6,9 @@ import gymnasium as gym
 import numpy as np
 
 from activeperc_env.config import EnvConfig
-from activeperc_env.core import LOOKER_ACTIONS, Simulator
+from activeperc_env.core import HOLD, Simulator
 from activeperc_env.spaces import check_action, mover_space, observation_space
 from activeperc_env.viewer import HumanViewer
-
-HOLD = LOOKER_ACTIONS.index("hold")
 
 
 class _SingleAgentEnv(gym.Env):

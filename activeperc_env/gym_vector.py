@@ -15,11 +15,11 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from activeperc_env.config import EnvConfig, is_int
-from activeperc_env.core import Simulator
-from activeperc_env.gym_envs import HOLD
+from activeperc_env.core import HOLD, Simulator
 from activeperc_env.spaces import mover_space, observation_space
 
 MAX_SEED = 2**63 - 1  # seeds are kept as int64
+
 
 class _SingleAgentVectorEnv(VectorEnv):
     """N rooms of a single-agent view; subclasses map the agent's actions to moves and looks.

@@ -16,11 +16,11 @@ from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig
+from activeperc_env import MOVER_ACTIONS, EnvConfig
+from activeperc_env.core import HOLD
 
 JOINT = "joint"
 NUM_ACTIONS = len(MOVER_ACTIONS)  # the looker has as many (LOOKER_ACTIONS)
-HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 
 
 class Encoder(nn.Module):
