@@ -1,0 +1,30 @@
+"""``activeperc-episode``: one random episode's map, first-person strip and video."""
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from activeperc_env import EnvConfig
+from activeperc_env.episode import STRIP_CYCLES, main
+
+
+def test_episode_writes_map_views_and_video(tmp_path, capsys):
+    out = tmp_path / "episode"
+    assert main(["--out", str(out), "--seed", "3", "--fov", "100"]) == 0
+    printed = capsys.readouterr().out
+    cycles = int(printed.split(" in ")[1].split(" cycles")[0])
+    assert 1 <= cycles <= EnvConfig.max_cycles
+    assert iio.imread(out / "map.png").shape == (240, 320, 3)
+    assert iio.imread(out / "views.png").shape == (60, 80 * STRIP_CYCLES, 3)
+    frames = iio.imread(out / "episode.mp4")
+    assert frames.shape == (cycles + 1, 240, 320 + 320, 3)  # the map, then the view scaled 4x to its height
+    assert iio.immeta(out / "episode.mp4")["fps"] == EnvConfig.control_hz
+    assert np.abs(frames[0, :, :320].astype(int) - iio.imread(out / "map.png")).mean() < 10  # lossy video
+
+
+def test_episode_names_a_bad_option(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit:
+        main(["--out", str(tmp_path / "episode"), "--fov", "500"])
+    assert exit.value.code == 2
+    assert "fov=500" in capsys.readouterr().err
+    assert not (tmp_path / "episode").exists()
