@@ -235,3 +235,14 @@ def test_reused_views_are_the_pixels_of_a_new_render():
         assert np.array_equal(sim.render(), fresh)
         if sim.done.any():
             sim.reset(np.flatnonzero(sim.done))
+
+
+def test_render_into_a_given_array():
+    sim = Simulator(num_envs=3)
+    sim.reset(seeds=[1, 2, 3])
+    out = np.zeros((2, 60, 80, 3), dtype=np.uint8)
+    assert sim.render([2, 0], out=out) is out
+    assert out.any()
+    everything = sim.render()  # rooms 2 and 0 drawn again, in their own tiles
+    assert_same_view(out[0], everything[2])
+    assert_same_view(out[1], everything[0])

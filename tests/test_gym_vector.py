@@ -137,6 +137,8 @@ def test_bad_input_is_named():
         vec.reset(options={"reset_mask": np.ones(3, dtype=bool)})
     with pytest.raises(ValueError, match="marks no room"):
         vec.reset(options={"reset_mask": np.zeros(2, dtype=bool)})
+    with pytest.raises(ValueError, match="nthread=-1 is invalid"):
+        gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, nthread=-1)
     with pytest.raises(ValueError, match="max_episode_steps=0 is invalid"):
         gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, max_episode_steps=0)
     vec.close()

@@ -199,6 +199,10 @@ def test_bad_flags_are_named(tmp_path, capsys):
     assert "dqn" in capsys.readouterr().err
     assert cli.main([*TINY, "--out", str(tmp_path / "x"), "--epsilon", "1.5"]) == 2
     assert "epsilon" in capsys.readouterr().err
+    assert cli.main(["--resume"]) == 2
+    assert "--resume needs --out RUN_DIR" in capsys.readouterr().err
+    assert cli.main(["--resume", "--out", str(tmp_path / "x"), "--config", str(tmp_path / "p.yaml")]) == 2
+    assert "--resume takes the run's own config.yaml; drop --config" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -298,6 +302,9 @@ def test_eval_cli(tmp_path, capsys):
     assert result["episodes"] == 5 and 0 <= result["success_rate"] <= 1 and "mean_return" in result
     assert video.stat().st_size > 0
     assert iio.immeta(video)["fps"] == TrainConfig().env.control_hz  # plays in simulated time
+    assert evaluate.main([str(out), "--episodes", "5", "--seed", "2"]) == 0  # the same, as one line of text
+    line = f"meta: success rate {result['success_rate']:.3f}, mean return {result['mean_return']:.3f} over 5"
+    assert capsys.readouterr().out.startswith(line)
     assert evaluate.main([str(out / "checkpoint.pt"), "--episodes", "5", "--seed", "2", "--random", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["policy"] == "random"
     assert evaluate.main([str(tmp_path / "missing")]) == 2
@@ -312,6 +319,20 @@ def test_eval_cli(tmp_path, capsys):
         evaluate.main([str(out), "--device", "gpu"])
     assert "gpu" in capsys.readouterr().err
     assert evaluate.main([str(out), "--episodes", "2", "--device", "auto", "--json"]) == 0
+
+
+def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
+    garbage, foreign, empty = tmp_path / "garbage.pt", tmp_path / "foreign.pt", tmp_path / "empty_run"
+    garbage.write_bytes(b"not a checkpoint at all")
+    torch.save({"weights": torch.zeros(2)}, foreign)
+    empty.mkdir()
+    for path, named in (
+        (garbage, "garbage.pt' cannot be read"),
+        (foreign, "foreign.pt' is not an activeperc checkpoint"),
+        (empty, "no checkpoint at '" + str(empty / "checkpoint.pt")),
+    ):
+        assert evaluate.main([str(path)]) == 2
+        assert named in capsys.readouterr().err
 
 
 def test_eval_is_reproducible_and_held_out(tmp_path):
