@@ -1,5 +1,6 @@
 """The tiled renderer draws the same pixels as one view at a time, and the map shows the scene."""
 
+import os
 import subprocess
 import sys
 
@@ -92,3 +93,22 @@ def test_a_fork_of_a_rendering_process_fails_clearly_instead_of_hanging(parent):
         assert "('error'," in done.stdout and "'spawn'" in done.stdout
     else:
         assert done.stdout.strip() == "('rendered', (1, 60, 80, 3))"
+
+
+def test_llvmpipe_without_threads_draws_the_same_pixels(tmp_path):
+    """docs/performance.md suggests LP_NUM_THREADS=0 for single-room use on a CPU: it must not change a pixel."""
+    script = (
+        "import sys, numpy as np\n"
+        "from activeperc_env import Simulator\n"
+        "sim = Simulator(num_envs=5)\n"
+        "sim.reset(seeds=np.arange(5))\n"
+        "sim.move(np.arange(5) % 3)\n"
+        "np.save(sys.argv[1], np.concatenate([sim.render(), sim.render_map(2)[None, :60, :80]]))\n"
+    )
+    pixels = {}
+    for threads in ("0", "2"):
+        env = {**os.environ, "LP_NUM_THREADS": threads}
+        path = tmp_path / f"pixels_{threads}.npy"
+        subprocess.run([sys.executable, "-c", script, str(path)], env=env, check=True, timeout=120)
+        pixels[threads] = np.load(path)
+    assert pixels["0"].any() and np.array_equal(pixels["0"], pixels["2"])
