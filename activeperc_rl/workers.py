@@ -200,8 +200,9 @@ def _work(conn, spec: _WorkerSpec) -> None:
     """A worker's life: build the env and collector of its rooms, then answer ``next`` until ``close``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    # llvmpipe draws with as many threads as there are cores unless told; share the cores among the workers
-    os.environ.setdefault("LP_NUM_THREADS", str(spec.threads))
+    # llvmpipe draws with as many threads as there are cores unless told; share the cores among the workers. A
+    # worker with one core draws in its own thread (0): the same pixels without waiting for a helper thread
+    os.environ.setdefault("LP_NUM_THREADS", str(spec.threads if spec.threads > 1 else 0))
     from torchrl.collectors import Collector
 
     from activeperc_rl.envs import make_env
