@@ -45,10 +45,17 @@ class MoveResult:
 
 
 def load_model(config: EnvConfig) -> mujoco.MjModel:
-    """Compile the scene and set its camera to the configured field of view."""
+    """Compile the scene, set its camera to the configured field of view and hide the occluders left parked.
+
+    Occluders beyond ``num_obstacles`` stand far outside the room, beyond every camera's far plane, so no view
+    shows them; taking them out of the renderer's scene (a geom group no view draws) leaves every pixel as it
+    was and saves their draw calls.
+    """
     model = mujoco.MjModel.from_xml_path(str(names.SCENE_XML))
     eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
     model.cam_fovy[eye] = config.fovy
+    for body in names.OCCLUDER_BODIES[config.num_obstacles :]:
+        model.geom_group[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, body)] = names.HIDDEN_GROUP
     return model
 
 

@@ -21,6 +21,8 @@ OCCLUDER_BODIES = tuple(f"occluder_{i}" for i in range(6))
 
 # geom group holding the robot's own visuals: hidden in its first-person view
 ROBOT_GROUP = 2
+# geom group that no view draws (MuJoCo shows groups 0-2 by default): the occluders a config leaves parked
+HIDDEN_GROUP = 5
 
 # dimensions that must agree with the XML
 WHEEL_RADIUS = 0.05

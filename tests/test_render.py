@@ -112,3 +112,30 @@ def test_llvmpipe_without_threads_draws_the_same_pixels(tmp_path):
         subprocess.run([sys.executable, "-c", script, str(path)], env=env, check=True, timeout=120)
         pixels[threads] = np.load(path)
     assert pixels["0"].any() and np.array_equal(pixels["0"], pixels["2"])
+
+
+@pytest.mark.parametrize("num_obstacles", [0, 3])
+def test_parked_occluders_left_out_of_the_views_change_no_pixel(num_obstacles):
+    """load_model hides the occluders a config leaves parked; drawing them must give exactly the same pixels."""
+    import mujoco
+
+    from activeperc_env import names
+
+    hidden, drawn = (Simulator(EnvConfig(num_obstacles=num_obstacles, pan_range=120), num_envs=6) for _ in range(2))
+    parked = [mujoco.mj_name2id(drawn.model, mujoco.mjtObj.mjOBJ_GEOM, b) for b in names.OCCLUDER_BODIES]
+    parked = parked[num_obstacles:]
+    assert (hidden.model.geom_group[parked] == names.HIDDEN_GROUP).all()
+    drawn.model.geom_group[parked] = 0
+    rng = np.random.default_rng(num_obstacles)
+    for sim in (hidden, drawn):
+        sim.reset(seeds=np.arange(6))
+    for _ in range(40):  # moves into walls and corners, looks all around
+        moves, looks = rng.integers(0, 3, 6), rng.integers(0, 3, 6)
+        for sim in (hidden, drawn):
+            sim.move(moves)
+            sim.look(looks)
+        assert np.array_equal(hidden.render(), drawn.render())
+        assert np.array_equal(hidden.render_map(1), drawn.render_map(1))
+        for sim in (hidden, drawn):
+            if sim.done.any():
+                sim.reset(np.flatnonzero(sim.done))
