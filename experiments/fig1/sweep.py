@@ -48,6 +48,7 @@ import numpy as np
 
 from activeperc_env.core import usable_cpus
 from activeperc_rl.atomic import atomic_path
+from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS
 from activeperc_rl.rundir import run_files
 
 HERE = Path(__file__).resolve().parent
@@ -129,7 +130,7 @@ def find_configs(ablations: bool = False, only: list[str] | None = None, root: P
 
 def is_finished(run_dir: Path, frames: int) -> bool:
     """Whether the run has its final evaluation (``eval.json``) at ``frames`` frames or more."""
-    path = run_dir / "eval.json"
+    path = run_dir / EVAL
     return path.is_file() and int(json.loads(path.read_text())["frames"]) >= frames
 
 
@@ -141,7 +142,7 @@ def method_rank(method: str) -> int:
 def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, extra: list[str]) -> list[str]:
     """The ``activeperc-train`` call of a task: a resume when the run has a checkpoint, else a fresh run."""
     command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--frames", str(frames)]
-    if (run_dir / "checkpoint.pt").is_file():
+    if (run_dir / CHECKPOINT).is_file():
         command.append("--resume")
     else:
         command += ["--config", str(task.config), "--seed", str(task.seed)]
@@ -150,10 +151,10 @@ def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, ex
 
 def export_run(task: Task, run_dir: Path, results: Path) -> dict:
     """Write the run's compact training curve into ``results/runs/`` and return its summary row."""
-    with open(run_dir / "metrics.csv", newline="") as file:
+    with open(run_dir / METRICS, newline="") as file:
         rows = list(csv.DictReader(file))
     if not rows:
-        raise ValueError(f"{run_dir / 'metrics.csv'} has no rows")
+        raise ValueError(f"{run_dir / METRICS} has no rows")
     seen = np.cumsum([int(r["episodes"]) for r in rows])
     for row, count in zip(rows, seen, strict=True):
         row["episodes"] = int(count)
@@ -164,7 +165,7 @@ def export_run(task: Task, run_dir: Path, results: Path) -> dict:
         writer = csv.writer(file)
         writer.writerow(CURVE_COLUMNS)
         writer.writerows([rows[i][c] for c in CURVE_COLUMNS] for i in keep)
-    evaluation = json.loads((run_dir / "eval.json").read_text())
+    evaluation = json.loads((run_dir / EVAL).read_text())
     return {
         "method": task.method,
         "fov": task.fov,
