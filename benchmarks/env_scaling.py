@@ -10,7 +10,7 @@ seconds):
    look and the render of ``s'`` (as in training's looker mode; ``s'`` is drawn only for the rooms whose camera
    the random look turned, the others reuse ``s_bar``).
 2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
-   each), measured by ``benchmarks/env_speed.py``'s own function, in a child process, in this same run
+   each), measured by ``benchmarks/peer.py`` in a child process, in this same run
    (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld
    at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has).
 3. With ``--memory-episodes E`` (the issue asks for 10,000), first, before any larger env has raised the
@@ -44,9 +44,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py sits next to this file
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
 
 import env_speed  # noqa: E402 (needs the path above)
+import peer  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 
@@ -200,7 +201,7 @@ def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
         writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
 
 
-def plot_scaling(path: Path, rates: dict[int, float], peer: float | None, cpus: int) -> None:
+def plot_scaling(path: Path, rates: dict[int, float], peer_rate: float | None, cpus: int) -> None:
     """Plot cycles/s against the number of rooms (log x) with MiniWorld's steps/s and 5x that, to ``path``."""
     import matplotlib
 
@@ -210,9 +211,9 @@ def plot_scaling(path: Path, rates: dict[int, float], peer: float | None, cpus: 
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     sizes = sorted(rates)
     ax.plot(sizes, [rates[n] for n in sizes], "o-", label="ours: make_env(num_envs=N), looker mode")
-    if peer:
-        ax.axhline(peer, color="tab:red", linestyle="--", label=f"MiniWorld {env_speed.PEER_ENV} raw steps/s")
-        ax.axhline(GOAL_MULTIPLE * peer, color="tab:green", linestyle=":", label=f"{GOAL_MULTIPLE:g}x MiniWorld")
+    if peer_rate:
+        ax.axhline(peer_rate, color="tab:red", linestyle="--", label=f"MiniWorld {peer.PEER_ENV} raw steps/s")
+        ax.axhline(GOAL_MULTIPLE * peer_rate, color="tab:green", linestyle=":", label=f"{GOAL_MULTIPLE:g}x MiniWorld")
     ax.set_xscale("log", base=2)
     ax.set_xticks(sizes, [str(n) for n in sizes])
     ax.set_ylim(bottom=0)
@@ -305,15 +306,15 @@ def main(argv: list[str] | None = None) -> dict:
         gc.collect()
 
     if args.no_peer:
-        peer, why = None, "skipped (--no-peer)"
+        miniworld, why = None, "skipped (--no-peer)"
     else:
-        peer, why = env_speed.bench_miniworld(args.seconds, args.warmup, args.seed)
-    peer_rate = peer["steps_per_s"] if peer else None
-    if peer:
-        label = f"MiniWorld {peer['version']} {env_speed.PEER_ENV}"
-        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (raw env.step, GL: {peer['gl_renderer']})")
+        miniworld, why = peer.bench_miniworld(args.seconds, args.warmup, args.seed)
+    peer_rate = miniworld["steps_per_s"] if miniworld else None
+    if miniworld:
+        label = f"MiniWorld {miniworld['version']} {peer.PEER_ENV}"
+        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (raw env.step, GL: {miniworld['gl_renderer']})")
     else:
-        print(f"peer  MiniWorld {env_speed.PEER_ENV}: NOT MEASURED, {why}")
+        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {why}")
     print()
 
     ratios = {n: rate / peer_rate for n, rate in rates.items()} if peer_rate else {}
@@ -351,7 +352,7 @@ def main(argv: list[str] | None = None) -> dict:
         "warmup": args.warmup,
         "seed": args.seed,
         "cycles_per_s": rates,
-        "miniworld": peer,
+        "miniworld": miniworld,
         "miniworld_error": why,
         "ratios": ratios,
         "goal": goal,

@@ -14,16 +14,21 @@ What it measures (random actions throughout, each figure timed for ``--seconds``
    one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
    16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render.
 4. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
-   (one render each), reset when an episode ends. It runs in a child process so that a GL failure
+   (one render each), reset when an episode ends, in a child process (``peer.py``) so that a GL failure
    there cannot stop our measurements; if it cannot run, the reason is printed instead.
 5. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
    MiniWorld, the core at N=64 at least 3x MiniWorld.
 
+Figures 1 to 3 are timed in ``--rounds`` rounds (3), MiniWorld before the first round and after each, and each
+round's figure is divided by the mean of the two MiniWorld figures around it: the machine's speed drifts over
+minutes, and a ratio of figures taken far apart measures the drift. The report gives the median of the rounds for
+every figure and ratio, each round's ratio, and judges the goals on the median ratio.
+
 Run it from the repository root (MiniWorld comes with the ``bench`` extra,
 ``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
 
-    python benchmarks/env_speed.py              # 5 s per measurement
-    python benchmarks/env_speed.py --seconds 2 --json
+    python benchmarks/env_speed.py              # 5 s per measurement, 3 rounds (about 3 minutes)
+    python benchmarks/env_speed.py --seconds 2 --rounds 1 --json
 """
 
 from __future__ import annotations
@@ -32,18 +37,20 @@ import argparse
 import json
 import os
 import platform
-import subprocess
+import statistics
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # peer.py sits next to this file
+
+import peer  # noqa: E402 (needs the path above)
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
 AEC_GOAL = 1.0  # the AEC env must reach this multiple of MiniWorld's steps/s
 CORE_GOAL = 3.0  # the core at N=64 must reach this multiple of MiniWorld's steps/s
-PEER_ENV = "MiniWorld-OneRoom-v0"
-PEER_TAG = "MINIWORLD_RESULT "  # prefix of the child process's result line
-OBS_WIDTH, OBS_HEIGHT = 80, 60
 
 
 def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
@@ -230,90 +237,50 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> flo
         env.close()
 
 
-def miniworld_worker(seconds: float, warmup: float, seed: int) -> None:
-    """Child-process side: time MiniWorld's raw steps and print one tagged JSON line."""
-    import pyglet
-
-    pyglet.options["headless"] = True  # before miniworld imports pyglet's GL
-    import gymnasium
-    import miniworld
-
-    env = gymnasium.make(PEER_ENV, obs_width=OBS_WIDTH, obs_height=OBS_HEIGHT)
-    obs, _ = env.reset(seed=seed)
-    env.action_space.seed(seed)
-    try:
-        gl_renderer = pyglet.gl.gl_info.get_renderer()
-    except Exception:  # only informative
-        gl_renderer = "?"
-
-    def step() -> int:
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
-            env.reset()
-        return 1
-
-    rate = timed_rate(step, seconds, warmup)
-    env.close()
-    result = {
-        "steps_per_s": rate,
-        "version": miniworld.__version__,
-        "obs_shape": list(obs.shape),
-        "gl_renderer": gl_renderer,
-    }
-    print(PEER_TAG + json.dumps(result), flush=True)
+FIGURES = {  # key of each figure of ours: its label and unit
+    "aec": ("AEC env activeperc_env.env()", "cycles/s"),
+    **{f"core_n{n}": (f"core Simulator(num_envs={n})", "cycles/s   (2 renders each)") for n in CORE_SIZES},
+    f"gym_vector_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0 N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
+    f"gym_sync_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0, mode sync N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
+}
 
 
-def bench_miniworld(seconds: float, warmup: float, seed: int) -> tuple[dict | None, str | None]:
-    """Run :func:`miniworld_worker` in a child process; returns ``(result, None)`` or ``(None, why)``."""
-    command = [
-        sys.executable,
-        os.path.abspath(__file__),
-        "--miniworld-worker",
-        "--seconds",
-        str(seconds),
-        "--warmup",
-        str(warmup),
-        "--seed",
-        str(seed),
-    ]
-    try:
-        done = subprocess.run(command, capture_output=True, text=True, timeout=seconds + warmup + 300)
-    except subprocess.TimeoutExpired:
-        return None, "the MiniWorld process did not finish in time"
-    for line in done.stdout.splitlines():
-        if line.startswith(PEER_TAG):
-            return json.loads(line[len(PEER_TAG) :]), None
-    tail = [line.strip() for line in (done.stderr.strip() or done.stdout.strip()).splitlines()[-3:]]
-    why = f"the MiniWorld process exited with status {done.returncode}"
-    if any("No module named 'miniworld'" in line for line in tail):
-        why += " (miniworld is not installed: pip install miniworld==2.1.0, the project's bench extra)"
-    return None, why + (": " + " | ".join(tail) if tail else "")
+def measure_round(seconds: float, warmup: float, seed: int) -> tuple[dict[str, float], str]:
+    """One round of every figure of ours (:data:`FIGURES`); also returns the GL renderer's name."""
+    ours = {}
+    ours["aec"], gl_renderer = bench_aec(seconds, warmup, seed)
+    for n in CORE_SIZES:
+        ours[f"core_n{n}"] = bench_core(n, seconds, warmup, seed)
+    for mode, key in (("vector_entry_point", "gym_vector"), ("sync", "gym_sync")):
+        ours[f"{key}_n{GYM_VEC_SIZE}"] = bench_gym_vector(mode, seconds, warmup, seed)
+    return ours, gl_renderer
 
 
-def summarise(ours: dict[str, float], peer: float | None) -> tuple[dict[str, float], dict[str, bool]]:
-    """Ratios ours/MiniWorld for every figure, and the two goals (empty when MiniWorld is missing)."""
-    if not peer:
-        return {}, {}
-    ratios = {name: rate / peer for name, rate in ours.items()}
+def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None):
+    """Per-round ratios ours/MiniWorld (:func:`peer.bracketed_ratios`) of every figure, their medians, and the two
+    goals judged on the medians (all empty when MiniWorld was not measured)."""
+    if not peer_rates:
+        return {}, {}, {}
+    per_round = {key: peer.bracketed_ratios([r[key] for r in rounds], peer_rates) for key in rounds[0]}
+    medians = {key: statistics.median(values) for key, values in per_round.items()}
     goals = {
-        f"aec >= {AEC_GOAL:g}x MiniWorld": ratios["aec"] >= AEC_GOAL,
-        f"core N=64 >= {CORE_GOAL:g}x MiniWorld": ratios["core_n64"] >= CORE_GOAL,
+        f"aec >= {AEC_GOAL:g}x MiniWorld": medians["aec"] >= AEC_GOAL,
+        f"core N=64 >= {CORE_GOAL:g}x MiniWorld": medians["core_n64"] >= CORE_GOAL,
     }
-    return ratios, goals
+    return per_round, medians, goals
 
 
 def main() -> None:
-    """Parse the flags, run every measurement and print the report."""
+    """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="timed seconds per measurement (5)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of our figures, MiniWorld timed around each (3)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     parser.add_argument("--warmup", type=float, default=1.0, help="untimed seconds before each timing (1)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the resets and the random actions (0)")
-    parser.add_argument("--miniworld-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.miniworld_worker:
-        miniworld_worker(args.seconds, args.warmup, args.seed)
-        return
+    if args.rounds < 1:
+        parser.error(f"--rounds must be >= 1, got {args.rounds}")
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
 
@@ -322,46 +289,55 @@ def main() -> None:
     cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
     print(f"machine: {cpus}, {machine['processor']}")
     print(f"         {machine['platform']}, Python {machine['python']}")
-    print(f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed}")
+    print(
+        f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed};"
+        f" {args.rounds} round(s) of ours, MiniWorld timed before the first and after each"
+    )
     print()
 
-    ours: dict[str, float] = {}
-    ours["aec"], gl_renderer = bench_aec(args.seconds, args.warmup, args.seed)
-    machine["gl_renderer"] = gl_renderer
-    print(f"ours  {'AEC env activeperc_env.env()':<34}{ours['aec']:9.1f} cycles/s   (GL: {gl_renderer})")
     aec_parts = aec_breakdown(args.seconds, args.warmup, args.seed)
-    for n in CORE_SIZES:
-        ours[f"core_n{n}"] = bench_core(n, args.seconds, args.warmup, args.seed)
-        label = f"core Simulator(num_envs={n})"
-        print(f"ours  {label:<34}{ours[f'core_n{n}']:9.1f} cycles/s   (2 renders each)")
-    for mode, key, label in (
-        ("vector_entry_point", "gym_vector", "make_vec Joint-v0"),
-        ("sync", "gym_sync", "make_vec Joint-v0, mode sync"),
-    ):
-        ours[f"{key}_n{GYM_VEC_SIZE}"] = rate = bench_gym_vector(mode, args.seconds, args.warmup, args.seed)
-        print(f"ours  {label + f' N={GYM_VEC_SIZE}':<34}{rate:9.1f} steps/s    (1 render each)")
 
-    peer, why = bench_miniworld(args.seconds, args.warmup, args.seed)
-    peer_rate = peer["steps_per_s"] if peer else None
-    if peer:
-        label = f"MiniWorld {peer['version']} {PEER_ENV}"
-        shape = "x".join(map(str, peer["obs_shape"]))
-        print(f"peer  {label:<34}{peer_rate:9.1f} steps/s    (obs {shape}, GL: {peer['gl_renderer']})")
+    def measure(i: int) -> dict[str, float]:
+        ours, machine["gl_renderer"] = measure_round(args.seconds, args.warmup, args.seed)
+        print(f"round {i + 1}: " + ", ".join(f"{key} {rate:.1f}" for key, rate in ours.items()), flush=True)
+        return ours
+
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
+    rounds, peer_rates, info, why = measured.ours, measured.peer, measured.info, measured.why
+    print()
+
+    medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
+    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
+    print(f"figures: {how}; GL: {machine['gl_renderer']}")
+    for key, (label, unit) in FIGURES.items():
+        print(f"ours  {label:<34}{medians[key]:9.1f} {unit}")
+    if peer_rates:
+        label = f"MiniWorld {info['version']} {peer.PEER_ENV}"
+        shape = "x".join(map(str, info["obs_shape"]))
+        every = f"median of {len(peer_rates)}: {', '.join(f'{rate:.1f}' for rate in peer_rates)}; "
+        print(
+            f"peer  {label:<34}{statistics.median(peer_rates):9.1f} steps/s    ({every}obs {shape},"
+            f" GL: {info['gl_renderer']})"
+        )
     else:
-        print(f"peer  MiniWorld {PEER_ENV}: NOT MEASURED, {why}")
+        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {why}")
     print()
 
     parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
     rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts['rest']:.2f}"
-    peer_step = f"; a MiniWorld step: {1e3 / peer_rate:.2f} ms" if peer_rate else ""
+    peer_step = f"; a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms" if peer_rates else ""
     print(f"where an AEC cycle goes (timed apart): {aec_parts['total']:.2f} ms = {parts} + {rest}{peer_step}")
     print()
 
-    ratios, goals = summarise(ours, peer_rate)
+    per_round, ratios, goals = summarise(rounds, peer_rates)
     if ratios:
-        print("ratio ours/MiniWorld: " + ", ".join(f"{name} {r:.2f}x" for name, r in ratios.items()))
+        print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
+        for key, values in per_round.items():
+            print(f"ratio {key:<16}{peer.spread(values, 2, 'x')}")
         for goal, met in goals.items():
-            print(f"goal  {goal}: {'MET' if met else 'NOT MET'}")
+            key = "aec" if goal.startswith("aec") else "core_n64"
+            rounds_met = sum(value >= (AEC_GOAL if key == "aec" else CORE_GOAL) for value in per_round[key])
+            print(f"goal  {goal}: {'MET' if met else 'NOT MET'} (median; met in {rounds_met} of {args.rounds} rounds)")
     else:
         print("ratios and goals: unknown, MiniWorld could not be measured")
 
@@ -371,10 +347,13 @@ def main() -> None:
             "seconds": args.seconds,
             "warmup": args.warmup,
             "seed": args.seed,
-            "ours_cycles_per_s": ours,
+            "rounds": rounds,
+            "ours_cycles_per_s": medians,
             "aec_ms_per_cycle": aec_parts,
-            "miniworld": peer,
+            "miniworld": info,
+            "miniworld_steps_per_s": peer_rates,
             "miniworld_error": why,
+            "ratio_rounds": per_round,
             "ratios": ratios,
             "goals_met": goals,
         }

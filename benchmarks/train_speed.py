@@ -11,11 +11,16 @@ What it measures (networks on ``--device``, the CPU by default; the default
    only; it includes the policy's and the in-loop looker's forward passes and the renders) is reported as
    "collect", the rest of each iteration (losses, backward passes, optimizer steps, soft updates) as "learn".
    The allocator is set as ``activeperc-train`` sets it (:func:`~activeperc_rl.allocator.keep_freed_memory`).
-2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, measured by
-   ``benchmarks/env_speed.py``'s own function (in a child process) in this same run.
+2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, for ``--seconds``,
+   in a child process (``benchmarks/peer.py``) in this same run.
 3. Each method's frames/s divided by MiniWorld's steps/s, and the goals of the issues: ``meta`` at least 1x
    MiniWorld's raw env speed on 2 cores (issue 3) and at least 1.5x (issue 4). Both goals are stated for a
    2-core machine: the header prints how many CPUs this one has.
+
+The methods are timed in ``--rounds`` rounds (3), MiniWorld before the first round and after each, and each
+round's figure is divided by the mean of the two MiniWorld figures around it, because the machine's speed drifts
+over minutes. The report gives each method's median frames/s over the rounds and the median of its per-round
+ratios, with every round's ratio, and judges the goals on the median ratio.
 
 A training frame is one cycle of a room (the mover's move and, in looker mode, the look, each with its render),
 while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
@@ -23,9 +28,9 @@ environment loop, as the issues state it.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
 
-    python benchmarks/train_speed.py                      # 20 s per method
+    python benchmarks/train_speed.py                      # 20 s per method, 3 rounds (about 7 minutes)
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
-    python benchmarks/train_speed.py --seconds 5 --json
+    python benchmarks/train_speed.py --seconds 5 --rounds 1 --json
     python benchmarks/train_speed.py --methods meta --collect-workers 2   # collection in 2 processes per env
 """
 
@@ -35,13 +40,15 @@ import argparse
 import functools
 import gc
 import json
+import statistics
 import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py sits next to this file
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
 
 import env_speed  # noqa: E402 (needs the path above)
+import peer  # noqa: E402
 
 GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
@@ -117,13 +124,27 @@ def bench_method(
     return result
 
 
-def summarise(ours: dict[str, dict], peer: float | None) -> tuple[dict[str, float], dict[str, bool | None]]:
-    """Ratios frames/s over MiniWorld's steps/s per method, and the goals (``None`` when they cannot be judged)."""
-    if not peer:
-        return {}, {goal: None for goal, _ in GOALS}
-    ratios = {name: result["frames_per_s"] / peer for name, result in ours.items()}
-    goals = {goal: (ratios["meta"] >= multiple if "meta" in ratios else None) for goal, multiple in GOALS}
-    return ratios, goals
+def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
+    """Per-round ratios frames/s over MiniWorld's steps/s of every method (:func:`peer.bracketed_ratios`), their
+    medians, and the goals judged on ``meta``'s median (``None`` when they cannot be judged)."""
+    if not peer_rates:
+        return {}, {}, {goal: None for goal, _ in GOALS}
+    per_round = {
+        name: peer.bracketed_ratios([r[name]["frames_per_s"] for r in rounds], peer_rates) for name in rounds[0]
+    }
+    medians = {name: statistics.median(values) for name, values in per_round.items()}
+    goals = {goal: (medians["meta"] >= multiple if "meta" in medians else None) for goal, multiple in GOALS}
+    return per_round, medians, goals
+
+
+def combine(results: list[dict]) -> dict:
+    """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time."""
+    total = {key: sum(r[key] for r in results) for key in ("iterations", "frames", "seconds", "collect_s", "learn_s")}
+    return results[-1] | total | {
+        "frames_per_s": statistics.median(r["frames_per_s"] for r in results),
+        "frames_per_s_rounds": [r["frames_per_s"] for r in results],
+        "frames_per_iteration": total["frames"] / total["iterations"],
+    }
 
 
 def main() -> None:
@@ -146,8 +167,11 @@ def main() -> None:
         "--collect-workers", type=int, default=0, help="worker processes per env (TrainConfig.collect_workers, 0)"
     )
     parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations before each timing (2)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of the methods, MiniWorld timed around each (3)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error(f"--rounds must be >= 1, got {args.rounds}")
 
     import torch
 
@@ -170,15 +194,29 @@ def main() -> None:
         print(f"         GPU {machine['gpu']}")
     print(
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
-        f" networks on {args.device}, TrainConfig(collect_workers={args.collect_workers})"
+        f" networks on {args.device}, TrainConfig(collect_workers={args.collect_workers});"
+        f" {args.rounds} round(s), MiniWorld timed before the first and after each"
     )
     print()
 
-    ours: dict[str, dict] = {}
-    for name in args.methods:
-        result = ours[name] = bench_method(
-            name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers
-        )
+    def measure(i: int) -> dict[str, dict]:
+        results = {}
+        for name in args.methods:
+            results[name] = bench_method(
+                name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers
+            )
+            print(f"round {i + 1}: train {name:<14}{results[name]['frames_per_s']:9.1f} frames/s", flush=True)
+            gc.collect()
+        return results
+
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0)
+    rounds, peer_rates = measured.ours, measured.peer
+    ours = {name: combine([r[name] for r in rounds]) for name in args.methods}
+    print()
+
+    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
+    print(f"figures: {how}")
+    for name, result in ours.items():
         collect = result["collect_s"] / result["seconds"]
         detail = (
             f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
@@ -188,16 +226,17 @@ def main() -> None:
         if "obstacles" in result:
             detail += f", phase with {result['obstacles']} obstacles"
         print(f"train {name:<14}{result['frames_per_s']:9.1f} frames/s   {detail}")
-        gc.collect()
-
-    peer, why = env_speed.bench_miniworld(args.seconds, 1.0, 0)
-    peer_rate = peer["steps_per_s"] if peer else None
-    if peer:
-        label = f"MiniWorld {peer['version']} {env_speed.PEER_ENV}"
-        shape = "x".join(map(str, peer["obs_shape"]))
-        print(f"peer  {label:<34}{peer_rate:9.1f} steps/s    (raw env.step, obs {shape}, GL: {peer['gl_renderer']})")
+    if peer_rates:
+        info = measured.info
+        label = f"MiniWorld {info['version']} {peer.PEER_ENV}"
+        shape = "x".join(map(str, info["obs_shape"]))
+        every = f"median of {len(peer_rates)}: {', '.join(f'{rate:.1f}' for rate in peer_rates)}; "
+        print(
+            f"peer  {label:<34}{statistics.median(peer_rates):9.1f} steps/s    ({every}raw env.step, obs {shape},"
+            f" GL: {info['gl_renderer']})"
+        )
     else:
-        print(f"peer  MiniWorld {env_speed.PEER_ENV}: NOT MEASURED, {why}")
+        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {measured.why}")
     print()
 
     if "meta" in ours:
@@ -208,16 +247,19 @@ def main() -> None:
             f"meta  one iteration: {per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
             f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
         )
-    ratios, goals = summarise(ours, peer_rate)
+    per_round, ratios, goals = summarise(rounds, peer_rates)
     if ratios:
-        for name, ratio in ratios.items():
-            print(f"ratio {name:<14}{ratio:6.2f}x MiniWorld raw steps/s")
+        print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
+        for name, values in per_round.items():
+            print(f"ratio {name:<14}{peer.spread(values, 2, 'x')}")
     else:
         print("ratios: unknown, MiniWorld could not be measured")
-    for goal, met in goals.items():
+    for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
         verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
-        note = f" (measured on {machine['usable_cpus']} usable CPUs)" if met is not None else ""
-        print(f"goal  {goal}: {verdict}{note}")
+        if met is not None:
+            rounds_met = sum(value >= multiple for value in per_round["meta"])
+            verdict += f" (median; met in {rounds_met} of {args.rounds} rounds; {machine['usable_cpus']} usable CPUs)"
+        print(f"goal  {goal}: {verdict}")
 
     if "gpu" in machine and "meta" in ours:
         met = ours["meta"]["frames_per_s"] >= GPU_GOAL
@@ -229,9 +271,12 @@ def main() -> None:
             "machine": machine,
             "seconds": args.seconds,
             "warmup_iters": args.warmup_iters,
+            "rounds": args.rounds,
             "methods": ours,
-            "miniworld": peer,
-            "miniworld_error": why,
+            "miniworld": measured.info,
+            "miniworld_steps_per_s": peer_rates,
+            "miniworld_error": measured.why,
+            "ratio_rounds": per_round,
             "ratios": ratios,
             "goals_met": goals,
         }

@@ -2,6 +2,7 @@
 
 import csv
 import importlib.util
+import sys
 from pathlib import Path
 
 import pytest
@@ -101,3 +102,84 @@ def test_env_speed_times_both_gymnasium_vector_modes(mode):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     assert module.bench_gym_vector(mode, seconds=0.3, warmup=0.05, seed=0) > 0
+
+
+@pytest.fixture(scope="module")
+def peer():
+    """benchmarks/peer.py as a module (registered under its name, as its dataclass needs)."""
+    spec = importlib.util.spec_from_file_location("peer", SCRIPT.with_name("peer.py"))
+    module = importlib.util.module_from_spec(spec)
+    previous = sys.modules.get("peer")
+    sys.modules["peer"] = module
+    spec.loader.exec_module(module)
+    yield module
+    if previous is None:
+        del sys.modules["peer"]
+    else:
+        sys.modules["peer"] = previous
+
+
+def test_each_round_is_divided_by_the_peer_figures_around_it(peer):
+    assert peer.bracketed_ratios([300.0, 600.0], [100.0, 200.0, 400.0]) == [2.0, 2.0]
+    with pytest.raises(ValueError, match="2 peer figures for 2 rounds: expected 3"):
+        peer.bracketed_ratios([1.0, 2.0], [1.0, 2.0])
+    assert peer.spread([0.5, 0.9, 0.7], 2, "x") == "0.70x (0.50x, 0.90x, 0.70x)"
+    assert peer.spread([0.5], 1) == "0.5"
+
+
+class FakeMiniWorld:
+    """Stands in for peer.MiniWorld: answers 100, 200, ... steps/s, or fails at the measurement ``fail_at``."""
+
+    fail_at = None
+    log: list = []
+
+    def __init__(self, seed):
+        self.info = {"version": "fake"}
+        self.answers = 0
+
+    def measure(self, seconds, warmup):
+        if self.answers == self.fail_at:
+            raise FakeMiniWorld.unavailable("the fake stopped answering")
+        self.answers += 1
+        self.log.append(("peer", self.answers))
+        return 100.0 * self.answers
+
+    def close(self):
+        self.log.append(("closed",))
+
+
+def test_in_rounds_times_the_peer_before_the_first_round_and_after_each(peer, monkeypatch):
+    FakeMiniWorld.unavailable, FakeMiniWorld.log, FakeMiniWorld.fail_at = peer.PeerUnavailable, [], None
+    monkeypatch.setattr(peer, "MiniWorld", FakeMiniWorld)
+
+    def measure_round(i):
+        FakeMiniWorld.log.append(("ours", i))
+        return {"rate": 10.0 * (i + 1)}
+
+    result = peer.in_rounds(2, measure_round, seconds=1.0, warmup=0.0, seed=0)
+    expected = [("peer", 1), ("ours", 0), ("peer", 2), ("ours", 1), ("peer", 3), ("closed",)]
+    assert FakeMiniWorld.log == expected
+    assert result.ours == [{"rate": 10.0}, {"rate": 20.0}] and result.peer == [100.0, 200.0, 300.0]
+    assert result.info == {"version": "fake"} and result.why is None
+
+    FakeMiniWorld.log, FakeMiniWorld.fail_at = [], 2  # answers twice, then fails: our rounds go on without it
+    result = peer.in_rounds(3, measure_round, seconds=1.0, warmup=0.0, seed=0)
+    assert [entry[0] for entry in FakeMiniWorld.log].count("ours") == 3
+    assert result.peer is None and result.why == "the fake stopped answering" and len(result.ours) == 3
+
+
+def test_in_rounds_goes_on_when_the_peer_cannot_start(peer, monkeypatch):
+    def cannot_start(seed):
+        raise peer.PeerUnavailable("no GL here")
+
+    monkeypatch.setattr(peer, "MiniWorld", cannot_start)
+    result = peer.in_rounds(2, lambda i: i, seconds=1.0, warmup=0.0, seed=0)
+    assert result.ours == [0, 1] and result.peer is None and result.why == "no GL here"
+
+
+def test_miniworld_child_process_measures_or_says_why(peer):
+    result, why = peer.bench_miniworld(seconds=0.3, warmup=0.1, seed=0)
+    if importlib.util.find_spec("miniworld") is None:  # the bench extra is not installed (as in CI)
+        assert result is None and "pip install miniworld==2.1.0" in why
+    else:
+        assert why is None and result["steps_per_s"] > 0 and result["obs_shape"] == [60, 80, 3]

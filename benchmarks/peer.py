@@ -1,0 +1,229 @@
+"""MiniWorld, the peer of our speed benchmarks: timed in a child process, on request, between our own measurements.
+
+The machine's speed drifts from minute to minute (other work on the host), and MiniWorld drifts with it, so a
+ratio of two figures taken a minute apart says more about the drift than about us. The benchmarks therefore
+time in rounds: MiniWorld, then a round of ours, then MiniWorld again, and so on, and divide each round of ours
+by the mean of the two MiniWorld figures around it (:func:`bracketed_ratios`). :class:`MiniWorld` keeps one
+MiniWorld env alive in a child process for that, so each of its measurements costs only its own seconds; a GL
+failure in the child cannot stop our measurements, it becomes a :class:`PeerUnavailable` that says why.
+
+MiniWorld comes with the project's ``bench`` extra (``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import queue
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+PEER_ENV = "MiniWorld-OneRoom-v0"
+OBS_WIDTH, OBS_HEIGHT = 80, 60
+TAG = "MINIWORLD_RESULT "  # prefix of the child's answer lines; anything else it prints is ignored
+START_TIMEOUT = 300.0  # seconds the child may take to build its env
+ANSWER_MARGIN = 120.0  # seconds a measurement may overrun its requested time
+
+
+class PeerUnavailable(RuntimeError):
+    """MiniWorld could not be measured; the message says why."""
+
+
+class MiniWorld:
+    """``MiniWorld-OneRoom-v0`` at 80x60 in a child process, its raw random-action steps/s timed on request.
+
+    Args:
+        seed: seed of the env's reset and of its random actions.
+
+    ``info`` holds the child's ``version``, ``obs_shape`` and ``gl_renderer``. Use it as a context manager, or
+    call :meth:`close`. Raises :class:`PeerUnavailable` when the child cannot start or answer.
+    """
+
+    def __init__(self, seed: int = 0):
+        self._stderr = tempfile.TemporaryFile(mode="w+")
+        command = [sys.executable, os.path.abspath(__file__), "--serve", "--seed", str(seed)]
+        self._proc = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True, bufsize=1
+        )
+        self._answers: queue.Queue[str | None] = queue.Queue()
+        threading.Thread(target=self._read_answers, daemon=True).start()
+        try:
+            self.info = self._answer(START_TIMEOUT)
+        except PeerUnavailable:
+            self.close()
+            raise
+
+    def measure(self, seconds: float, warmup: float) -> float:
+        """MiniWorld's raw ``env.step`` calls per second over ``seconds``, after ``warmup`` untimed seconds
+        (one render each; the env is reset when an episode ends)."""
+        try:
+            self._proc.stdin.write(f"{seconds} {warmup}\n")
+            self._proc.stdin.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            raise PeerUnavailable(self._why_gone()) from None
+        return self._answer(seconds + warmup + ANSWER_MARGIN)["steps_per_s"]
+
+    def close(self) -> None:
+        """End the child process."""
+        if self._proc.poll() is None:
+            try:
+                self._proc.stdin.close()
+                self._proc.wait(timeout=30)
+            except (OSError, subprocess.TimeoutExpired):
+                self._proc.kill()
+                self._proc.wait()
+        self._stderr.close()
+
+    def __enter__(self) -> MiniWorld:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _read_answers(self) -> None:
+        """Reader thread: put each tagged line of the child's stdout on the queue, then ``None`` at its end."""
+        for line in self._proc.stdout:
+            if line.startswith(TAG):
+                self._answers.put(line[len(TAG) :])
+        self._answers.put(None)
+
+    def _answer(self, timeout: float) -> dict:
+        try:
+            line = self._answers.get(timeout=timeout)
+        except queue.Empty:
+            self._proc.kill()
+            raise PeerUnavailable(f"the MiniWorld process did not answer within {timeout:g} s") from None
+        if line is None:
+            raise PeerUnavailable(self._why_gone())
+        return json.loads(line)
+
+    def _why_gone(self) -> str:
+        """Why the child stopped answering: its exit status and the last lines it wrote to stderr."""
+        status = self._proc.wait()
+        self._stderr.seek(0)
+        tail = [line.strip() for line in self._stderr.read().strip().splitlines()[-3:]]
+        why = f"the MiniWorld process exited with status {status}"
+        if any(f"No module named '{module}'" in line for line in tail for module in ("miniworld", "pyglet")):
+            why += " (miniworld is not installed: pip install miniworld==2.1.0, the project's bench extra)"
+        return why + (": " + " | ".join(tail) if tail else "")
+
+
+def bench_miniworld(seconds: float, warmup: float, seed: int) -> tuple[dict | None, str | None]:
+    """One measurement of MiniWorld in a fresh child: ``({"steps_per_s": ..., **info}, None)`` or ``(None, why)``."""
+    try:
+        with MiniWorld(seed) as peer:
+            return {"steps_per_s": peer.measure(seconds, warmup), **peer.info}, None
+    except PeerUnavailable as error:
+        return None, str(error)
+
+
+@dataclass
+class Rounds:
+    """What :func:`in_rounds` measured: ours per round, and MiniWorld around the rounds."""
+
+    ours: list = field(default_factory=list)
+    """What each round of ours returned."""
+    peer: list[float] | None = field(default_factory=list)
+    """MiniWorld's steps/s before the first round and after each (``len(ours) + 1``); ``None`` if it failed."""
+    info: dict | None = None
+    """MiniWorld's ``version``, ``obs_shape`` and ``gl_renderer``."""
+    why: str | None = None
+    """Why MiniWorld was not measured, when it was not."""
+
+
+def in_rounds(rounds: int, measure_round: Callable[[int], object], seconds: float, warmup: float, seed: int) -> Rounds:
+    """Call ``measure_round(i)`` for ``i`` in ``range(rounds)``, with MiniWorld timed for ``seconds`` (after
+    ``warmup``) before the first round and after each; each MiniWorld figure is printed as it comes.
+
+    When MiniWorld cannot start or stops answering, our rounds go on and the result says why.
+    """
+    result = Rounds()
+    try:
+        miniworld = MiniWorld(seed)
+        result.info = miniworld.info
+    except PeerUnavailable as error:
+        miniworld, result.peer, result.why = None, None, str(error)
+
+    def time_peer() -> None:
+        nonlocal miniworld
+        if miniworld is None:
+            return
+        try:
+            result.peer.append(miniworld.measure(seconds, warmup))
+            print(f"      MiniWorld {result.peer[-1]:.1f} steps/s", flush=True)
+        except PeerUnavailable as error:
+            miniworld.close()
+            miniworld, result.peer, result.why = None, None, str(error)
+
+    try:
+        time_peer()
+        for i in range(rounds):
+            result.ours.append(measure_round(i))
+            time_peer()
+    finally:
+        if miniworld is not None:
+            miniworld.close()
+    return result
+
+
+def bracketed_ratios(ours: list[float], peer: list[float]) -> list[float]:
+    """Each round's figure of ours over the mean of the peer's figures just before and just after that round.
+
+    ``peer`` holds one more figure than ``ours``: the peer was timed before the first round and after every round.
+    """
+    if len(peer) != len(ours) + 1:
+        raise ValueError(f"{len(peer)} peer figures for {len(ours)} rounds: expected {len(ours) + 1}")
+    return [mine / ((before + after) / 2) for mine, before, after in zip(ours, peer, peer[1:], strict=False)]
+
+
+def spread(values: list[float], digits: int, unit: str = "") -> str:
+    """``"median (v1, v2, ...)"`` with ``digits`` decimals and ``unit`` after each number; the median alone for one
+    value."""
+    median = f"{statistics.median(values):.{digits}f}{unit}"
+    if len(values) == 1:
+        return median
+    return f"{median} ({', '.join(f'{v:.{digits}f}{unit}' for v in values)})"
+
+
+def serve(seed: int) -> None:
+    """Child side: build the env, announce it, then time it for each ``"seconds warmup"`` line read from stdin."""
+    import pyglet
+
+    pyglet.options["headless"] = True  # before miniworld imports pyglet's GL
+    import gymnasium
+    import miniworld
+    from env_speed import timed_rate  # the same timing loop as ours; env_speed sits next to this file
+
+    env = gymnasium.make(PEER_ENV, obs_width=OBS_WIDTH, obs_height=OBS_HEIGHT)
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    try:
+        gl_renderer = pyglet.gl.gl_info.get_renderer()
+    except Exception:  # only informative
+        gl_renderer = "?"
+    info = {"version": miniworld.__version__, "obs_shape": list(obs.shape), "gl_renderer": gl_renderer}
+    print(TAG + json.dumps(info), flush=True)
+
+    def step() -> int:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+        return 1
+
+    for request in sys.stdin:
+        seconds, warmup = map(float, request.split())
+        print(TAG + json.dumps({"steps_per_s": timed_rate(step, seconds, warmup)}), flush=True)
+    env.close()
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description="child process of MiniWorld (started by the benchmarks)")
+    parser.add_argument("--serve", action="store_true", required=True)
+    parser.add_argument("--seed", type=int, default=0)
+    serve(parser.parse_args().seed)
