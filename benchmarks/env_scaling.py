@@ -12,7 +12,9 @@ seconds):
 2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
    each), measured by ``benchmarks/peer.py`` in a child process, in this same run
    (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld
-   at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has).
+   at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has). The Ns are timed in
+   ``--rounds`` rounds (3), MiniWorld before the first and after each; each round's rate is divided by the mean
+   of the two MiniWorld figures around it, and the report gives the medians over the rounds.
 3. With ``--memory-episodes E`` (the issue asks for 10,000), first, before any larger env has raised the
    RSS: ``make_env(num_envs=--memory-rooms)`` stepped the same way until E episodes have ended over all its
    rooms, sampling the resident memory (RSS) of this process after the warm-up and then about every E/100
@@ -21,14 +23,14 @@ seconds):
 4. When N = 64 is among them: where the bare ``Simulator(num_envs=64)``'s cycle spends its time (physics,
    renders, look, resets, ms per cycle) and how much more a cycle of the TorchRL env at N = 64 takes.
 
-It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio; the last two
-empty when MiniWorld was not measured), a plot of cycles/s against N with MiniWorld's steps/s and 5x that
+It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio, each the median
+over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against N with MiniWorld's steps/s and 5x that
 (``--plot``) and, in memory mode, a CSV of the RSS samples (``--memory-csv``: episodes, rss_mib).
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
 
-    python benchmarks/env_scaling.py                                   # 5 s per N, no memory run
-    python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --json
+    python benchmarks/env_scaling.py                                   # 5 s per N, 3 rounds, no memory run
+    python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --rounds 1 --json
     python benchmarks/env_scaling.py --num-envs 64 --memory-episodes 10000
 """
 
@@ -39,6 +41,7 @@ import csv
 import gc
 import json
 import os
+import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -248,6 +251,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0, help="seed of the layouts and the random actions (0)")
     parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
     parser.add_argument(
+        "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of every N, MiniWorld around each (3)"
+    )
+    parser.add_argument(
         "--memory-episodes",
         type=at_least(int, "memory_episodes", 0),
         default=0,
@@ -277,7 +283,10 @@ def main(argv: list[str] | None = None) -> dict:
     print("activeperc batched env throughput vs rooms")
     cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
     print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
-    print(f"timing:  {args.seconds:g} s per N after {args.warmup:g} s warm-up, seed {args.seed}, random actions")
+    print(
+        f"timing:  {args.seconds:g} s per N after {args.warmup:g} s warm-up, seed {args.seed}, random actions;"
+        f" {args.rounds} round(s), MiniWorld timed before the first and after each"
+    )
     print()
 
     # the memory run comes first, so that no larger env has raised the RSS it starts from
@@ -299,34 +308,48 @@ def main(argv: list[str] | None = None) -> dict:
         print()
         gc.collect()
 
-    rates: dict[int, float] = {}
-    for n in dict.fromkeys(args.num_envs):  # in the order given, each N once
-        rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed)
-        print(f"ours  make_env(num_envs={n:<5}) {rates[n]:10.1f} cycles/s   ({rates[n] / n:7.1f} per room)")
-        gc.collect()
+    def measure(i: int) -> dict[int, float]:
+        rates = {}
+        for n in dict.fromkeys(args.num_envs):  # in the order given, each N once
+            rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed)
+            print(f"round {i + 1}: make_env(num_envs={n}) {rates[n]:.1f} cycles/s", flush=True)
+            gc.collect()
+        return rates
 
     if args.no_peer:
-        miniworld, why = None, "skipped (--no-peer)"
+        measured = peer.Rounds(ours=[measure(i) for i in range(args.rounds)], peer=None, why="skipped (--no-peer)")
     else:
-        miniworld, why = peer.bench_miniworld(args.seconds, args.warmup, args.seed)
-    peer_rate = miniworld["steps_per_s"] if miniworld else None
-    if miniworld:
-        label = f"MiniWorld {miniworld['version']} {peer.PEER_ENV}"
-        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (raw env.step, GL: {miniworld['gl_renderer']})")
+        measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
+    rounds, why = measured.ours, measured.why
+    print()
+
+    rates = {n: statistics.median(r[n] for r in rounds) for n in rounds[0]}
+    print(f"figures: {f'median of {args.rounds} rounds' if args.rounds > 1 else 'one round'}")
+    for n, rate in rates.items():
+        print(f"ours  make_env(num_envs={n:<5}) {rate:10.1f} cycles/s   ({rate / n:7.1f} per room)")
+    peer_rate = statistics.median(measured.peer) if measured.peer else None
+    if peer_rate:
+        label = f"MiniWorld {measured.info['version']} {peer.PEER_ENV}"
+        every = ", ".join(f"{rate:.1f}" for rate in measured.peer)
+        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (median of {every}; raw env.step)")
     else:
         print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {why}")
     print()
 
-    ratios = {n: rate / peer_rate for n, rate in rates.items()} if peer_rate else {}
-    for n, ratio in ratios.items():
-        print(f"ratio N={n:<5} {ratio:7.2f}x MiniWorld raw steps/s")
+    per_round = (
+        {n: peer.bracketed_ratios([r[n] for r in rounds], measured.peer) for n in rates} if measured.peer else {}
+    )
+    ratios = {n: statistics.median(values) for n, values in per_round.items()}
+    for n, values in per_round.items():
+        print(f"ratio N={n:<5} {peer.spread(values, 2, 'x')} MiniWorld raw steps/s")
     goal = f"N={GOAL_NUM_ENVS} >= {GOAL_MULTIPLE:g}x MiniWorld raw env speed on 2 cores"
     met = ratios[GOAL_NUM_ENVS] >= GOAL_MULTIPLE if GOAL_NUM_ENVS in ratios else None
     verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
     if met is None:
         verdict += " (MiniWorld not measured)" if not peer_rate else f" (N={GOAL_NUM_ENVS} not timed)"
     else:
-        verdict += f" (measured on {machine['usable_cpus']} usable CPUs)"
+        rounds_met = sum(value >= GOAL_MULTIPLE for value in per_round[GOAL_NUM_ENVS])
+        verdict += f" (median; met in {rounds_met} of {args.rounds} rounds; {machine['usable_cpus']} usable CPUs)"
     print(f"goal  {goal}: {verdict}")
 
     split = None
@@ -352,7 +375,10 @@ def main(argv: list[str] | None = None) -> dict:
         "warmup": args.warmup,
         "seed": args.seed,
         "cycles_per_s": rates,
-        "miniworld": miniworld,
+        "rounds": rounds,
+        "miniworld": measured.info,
+        "miniworld_steps_per_s": measured.peer,
+        "ratio_rounds": per_round,
         "miniworld_error": why,
         "ratios": ratios,
         "goal": goal,

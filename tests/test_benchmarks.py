@@ -26,7 +26,7 @@ def read_csv(path):
 
 def test_env_scaling_writes_csv_plot_and_memory(env_scaling, tmp_path):
     rates, plot, memory = tmp_path / "out" / "scaling.csv", tmp_path / "scaling.png", tmp_path / "memory.csv"
-    argv = ["--num-envs", "1", "2", "--seconds", "0.2", "--warmup", "0.05", "--no-peer"]
+    argv = ["--num-envs", "1", "2", "--seconds", "0.2", "--warmup", "0.05", "--no-peer", "--rounds", "2"]
     argv += ["--memory-episodes", "5", "--memory-rooms", "5", "--csv", str(rates), "--plot", str(plot)]
     report = env_scaling.main([*argv, "--memory-csv", str(memory)])
 
@@ -34,6 +34,10 @@ def test_env_scaling_writes_csv_plot_and_memory(env_scaling, tmp_path):
     assert list(rows[0]) == ["num_envs", "cycles_per_s", "miniworld_steps_per_s", "ratio"]
     assert [row["num_envs"] for row in rows] == ["1", "2"]
     assert all(float(row["cycles_per_s"]) > 0 for row in rows)
+    assert len(report["rounds"]) == 2  # the CSV holds each N's median over the rounds
+    assert [float(row["cycles_per_s"]) for row in rows] == pytest.approx(
+        [(report["rounds"][0][n] + report["rounds"][1][n]) / 2 for n in (1, 2)]
+    )
     assert all(row["miniworld_steps_per_s"] == row["ratio"] == "" for row in rows)  # --no-peer
     assert plot.stat().st_size > 0
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["memory.csv", "out", "scaling.csv", "scaling.png"]
@@ -49,6 +53,9 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     with pytest.raises(SystemExit):
         env_scaling.main(["--num-envs", "4", "0"])
     assert "num_envs must be >= 1, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        env_scaling.main(["--rounds", "0"])
+    assert "rounds must be >= 1, got 0" in capsys.readouterr().err
 
 
 def test_performance_md_quotes_the_committed_scaling_csv():
