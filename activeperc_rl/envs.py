@@ -255,8 +255,8 @@ class ActivePerceptionEnv(EnvBase):
             index = torch.from_numpy(ids)
             image[index] = torch.from_numpy(self.sim.render(ids))
             pan[index] = torch.from_numpy(self.sim.pan(ids))
-        out = TensorDict({MOVER: {"observation": {"image": image, "pan": pan}}}, batch_size=self.batch_size)
-        out = out.to(self.device)
+        observation = {"image": image, "pan": pan}
+        out = TensorDict({MOVER: {"observation": observation}}, batch_size=self.batch_size, device=self.device)
         if self._looker is not None:
             out.set(LOOKER, self._looker_spec.zero())
         return out
@@ -302,7 +302,7 @@ class ActivePerceptionEnv(EnvBase):
         """The current view of every room: ``{"image", "pan"}`` on ``device``."""
         image = torch.from_numpy(self.sim.render())
         pan = torch.from_numpy(self.sim.pan())
-        return TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size).to(self.device)
+        return TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size, device=self.device)
 
 
 def _check_looker_action(action: torch.Tensor, n: int) -> None:
