@@ -24,8 +24,9 @@ seconds):
    renders, look, resets, ms per cycle) and how much more a cycle of the TorchRL env at N = 64 takes.
 
 It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio, each the median
-over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against N with MiniWorld's steps/s and 5x that
-(``--plot``) and, in memory mode, a CSV of the RSS samples (``--memory-csv``: episodes, rss_mib).
+over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against N with
+MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV of the RSS samples (``--memory-csv``:
+episodes, rss_mib).
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
 
@@ -320,7 +321,7 @@ def main(argv: list[str] | None = None) -> dict:
         measured = peer.Rounds(ours=[measure(i) for i in range(args.rounds)], peer=None, why="skipped (--no-peer)")
     else:
         measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
-    rounds, why = measured.ours, measured.why
+    rounds = measured.ours
     print()
 
     rates = {n: statistics.median(r[n] for r in rounds) for n in rounds[0]}
@@ -328,12 +329,7 @@ def main(argv: list[str] | None = None) -> dict:
     for n, rate in rates.items():
         print(f"ours  make_env(num_envs={n:<5}) {rate:10.1f} cycles/s   ({rate / n:7.1f} per room)")
     peer_rate = statistics.median(measured.peer) if measured.peer else None
-    if peer_rate:
-        label = f"MiniWorld {measured.info['version']} {peer.PEER_ENV}"
-        every = ", ".join(f"{rate:.1f}" for rate in measured.peer)
-        print(f"peer  {label:<30}{peer_rate:10.1f} steps/s    (median of {every}; raw env.step)")
-    else:
-        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {why}")
+    print(peer.describe(measured, width=30))
     print()
 
     per_round = (
@@ -379,7 +375,7 @@ def main(argv: list[str] | None = None) -> dict:
         "miniworld": measured.info,
         "miniworld_steps_per_s": measured.peer,
         "ratio_rounds": per_round,
-        "miniworld_error": why,
+        "miniworld_error": measured.why,
         "ratios": ratios,
         "goal": goal,
         "goal_met": met,

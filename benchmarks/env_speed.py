@@ -303,7 +303,7 @@ def main() -> None:
         return ours
 
     measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
-    rounds, peer_rates, info, why = measured.ours, measured.peer, measured.info, measured.why
+    rounds, peer_rates = measured.ours, measured.peer
     print()
 
     medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
@@ -311,16 +311,7 @@ def main() -> None:
     print(f"figures: {how}; GL: {machine['gl_renderer']}")
     for key, (label, unit) in FIGURES.items():
         print(f"ours  {label:<34}{medians[key]:9.1f} {unit}")
-    if peer_rates:
-        label = f"MiniWorld {info['version']} {peer.PEER_ENV}"
-        shape = "x".join(map(str, info["obs_shape"]))
-        every = f"median of {len(peer_rates)}: {', '.join(f'{rate:.1f}' for rate in peer_rates)}; "
-        print(
-            f"peer  {label:<34}{statistics.median(peer_rates):9.1f} steps/s    ({every}obs {shape},"
-            f" GL: {info['gl_renderer']})"
-        )
-    else:
-        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {why}")
+    print(peer.describe(measured))
     print()
 
     parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
@@ -350,9 +341,9 @@ def main() -> None:
             "rounds": rounds,
             "ours_cycles_per_s": medians,
             "aec_ms_per_cycle": aec_parts,
-            "miniworld": info,
+            "miniworld": measured.info,
             "miniworld_steps_per_s": peer_rates,
-            "miniworld_error": why,
+            "miniworld_error": measured.why,
             "ratio_rounds": per_round,
             "ratios": ratios,
             "goals_met": goals,

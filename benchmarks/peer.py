@@ -172,6 +172,20 @@ def in_rounds(rounds: int, measure_round: Callable[[int], object], seconds: floa
     return result
 
 
+def describe(measured: Rounds, width: int = 34) -> str:
+    """The report's line on MiniWorld: the median of its figures and each of them, or why it was not measured."""
+    if not measured.peer:
+        return f"peer  MiniWorld {PEER_ENV}: NOT MEASURED, {measured.why}"
+    info = measured.info
+    label = f"MiniWorld {info['version']} {PEER_ENV}"
+    shape = "x".join(map(str, info["obs_shape"]))
+    every = ", ".join(f"{rate:.1f}" for rate in measured.peer)
+    return (
+        f"peer  {label:<{width}}{statistics.median(measured.peer):9.1f} steps/s    (median of {every}; raw env.step,"
+        f" obs {shape}, GL: {info['gl_renderer']})"
+    )
+
+
 def bracketed_ratios(ours: list[float], peer: list[float]) -> list[float]:
     """Each round's figure of ours over the mean of the peer's figures just before and just after that round.
 

@@ -226,17 +226,7 @@ def main() -> None:
         if "obstacles" in result:
             detail += f", phase with {result['obstacles']} obstacles"
         print(f"train {name:<14}{result['frames_per_s']:9.1f} frames/s   {detail}")
-    if peer_rates:
-        info = measured.info
-        label = f"MiniWorld {info['version']} {peer.PEER_ENV}"
-        shape = "x".join(map(str, info["obs_shape"]))
-        every = f"median of {len(peer_rates)}: {', '.join(f'{rate:.1f}' for rate in peer_rates)}; "
-        print(
-            f"peer  {label:<34}{statistics.median(peer_rates):9.1f} steps/s    ({every}raw env.step, obs {shape},"
-            f" GL: {info['gl_renderer']})"
-        )
-    else:
-        print(f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, {measured.why}")
+    print(peer.describe(measured))
     print()
 
     if "meta" in ours:

@@ -134,6 +134,14 @@ def test_each_round_is_divided_by_the_peer_figures_around_it(peer):
     assert peer.spread([0.5], 1) == "0.5"
 
 
+def test_the_peer_line_gives_every_figure_or_why_there_is_none(peer):
+    info = {"version": "2.1.0", "obs_shape": [60, 80, 3], "gl_renderer": "llvmpipe"}
+    line = peer.describe(peer.Rounds(ours=[{}, {}], peer=[600.0, 700.0, 650.0], info=info))
+    assert "650.0 steps/s" in line and "median of 600.0, 700.0, 650.0" in line and "obs 60x80x3" in line
+    line = peer.describe(peer.Rounds(ours=[{}], peer=None, why="no GL here"))
+    assert line == f"peer  MiniWorld {peer.PEER_ENV}: NOT MEASURED, no GL here"
+
+
 class FakeMiniWorld:
     """Stands in for peer.MiniWorld: answers 100, 200, ... steps/s, or fails at the measurement ``fail_at``."""
 
