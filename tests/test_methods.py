@@ -115,6 +115,16 @@ def test_fixed_looker_and_joint_split():
     assert mover.tolist() == [0, 0, 0, 1, 1, 1, 2, 2, 2] and looker.tolist() == [0, 1, 2] * 3
 
 
+def test_encoder_scales_images_without_touching_its_input():
+    encoder = make_encoder(EnvConfig(), (4,), 8)
+    image = torch.randint(0, 256, (2, 60, 80, 3), dtype=torch.uint8)
+    pan = torch.zeros(2, 1)
+    as_float = image.float()  # a float image is scaled in the encoder's own copy, never in place
+    kept = as_float.clone()
+    assert torch.equal(encoder(image, pan), encoder(as_float, pan))
+    assert torch.equal(as_float, kept)
+
+
 def test_curriculum_keeps_its_switch_point_on_resume():
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method
