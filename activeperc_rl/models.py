@@ -49,8 +49,7 @@ class Encoder(nn.Module):
     def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
         """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)`` and ``pan (*batch, 1)``."""
         batch = image.shape[:-3]
-        x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2)
-        x = x.to(torch.float32, copy=True).div_(255.0)  # one new tensor, never the caller's, scaled in place
+        x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)
         pan = pan.reshape(-1, 1).to(x.dtype)
         x = torch.cat([x, torch.sin(pan), torch.cos(pan)], dim=-1)

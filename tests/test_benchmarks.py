@@ -1,4 +1,5 @@
-"""The benchmark scripts at their tiniest sizes: env_scaling's CSV, plot and memory samples, and the breakdowns."""
+"""The benchmark scripts at their tiniest sizes: env_scaling's CSV, plot and memory samples, the breakdowns, MiniWorld's
+child process and the rounds' ratios."""
 
 import csv
 import importlib.util
@@ -10,13 +11,18 @@ import pytest
 SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "env_scaling.py"
 
 
-@pytest.fixture(scope="module")
-def env_scaling():
-    """The benchmark script as a module (benchmarks/ is not a package)."""
-    spec = importlib.util.spec_from_file_location("env_scaling", SCRIPT)
+def load_script(name):
+    """A benchmark script as a module (benchmarks/ is not a package)."""
+    spec = importlib.util.spec_from_file_location(name, SCRIPT.with_name(f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.fixture(scope="module")
+def env_scaling():
+    """The benchmark script as a module."""
+    return load_script("env_scaling")
 
 
 def read_csv(path):
@@ -77,9 +83,7 @@ def test_collect_breakdown_times_every_part_and_restores_the_library():
     from activeperc_env.core import Simulator
     from activeperc_rl.models import Head
 
-    spec = importlib.util.spec_from_file_location("collect_breakdown", SCRIPT.with_name("collect_breakdown.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("collect_breakdown")
     originals = (Simulator.move, Simulator.render, Head.forward)
     result = module.breakdown("meta", num_envs=2, iterations=1, warmup_iters=0)
     assert (Simulator.move, Simulator.render, Head.forward) == originals
@@ -92,9 +96,7 @@ def test_collect_breakdown_times_every_part_and_restores_the_library():
 def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
     from activeperc_env.core import Simulator
 
-    spec = importlib.util.spec_from_file_location("env_speed", SCRIPT.with_name("env_speed.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("env_speed")
     originals = [getattr(Simulator, part) for part in module.AEC_PARTS]
     result = module.aec_breakdown(seconds=0.5, warmup=0.1, seed=0)
     assert [getattr(Simulator, part) for part in module.AEC_PARTS] == originals
@@ -105,9 +107,7 @@ def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
 
 @pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
 def test_env_speed_times_both_gymnasium_vector_modes(mode):
-    spec = importlib.util.spec_from_file_location("env_speed", SCRIPT.with_name("env_speed.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("env_speed")
     assert module.bench_gym_vector(mode, seconds=0.3, warmup=0.05, seed=0) > 0
 
 
@@ -198,3 +198,29 @@ def test_miniworld_child_process_measures_or_says_why(peer):
         assert result is None and "pip install miniworld==2.1.0" in why
     else:
         assert why is None and result["steps_per_s"] > 0 and result["obs_shape"] == [60, 80, 3]
+
+
+def test_env_speed_judges_the_goals_on_the_median_of_the_bracketed_rounds():
+    env_speed = load_script("env_speed")
+    rounds = [{"aec": 50.0, "core_n64": 330.0}, {"aec": 120.0, "core_n64": 250.0}, {"aec": 110.0, "core_n64": 290.0}]
+    per_round, medians, goals = env_speed.summarise(rounds, [100.0, 100.0, 100.0, 100.0])
+    assert per_round == {"aec": [0.5, 1.2, 1.1], "core_n64": [3.3, 2.5, 2.9]}
+    assert medians == {"aec": 1.1, "core_n64": 2.9}
+    assert goals == {"aec >= 1x MiniWorld": True, "core N=64 >= 3x MiniWorld": False}
+    assert env_speed.summarise(rounds, None) == ({}, {}, {})
+
+
+def test_train_speed_combines_a_methods_rounds():
+    train_speed = load_script("train_speed")
+    base = {"num_envs": 16, "rollout_length": 16}
+    results = [
+        base | {"frames_per_s": fps, "iterations": 2, "frames": 1536, "seconds": s, "collect_s": 1.0, "learn_s": s - 1}
+        for fps, s in ((500.0, 3.0), (400.0, 4.0), (450.0, 3.5))
+    ]
+    combined = train_speed.combine(results)
+    assert combined["frames_per_s"] == 450.0 and combined["frames_per_s_rounds"] == [500.0, 400.0, 450.0]
+    assert combined["iterations"] == 6 and combined["frames"] == 3 * 1536 and combined["seconds"] == 10.5
+    assert combined["frames_per_iteration"] == 768 and combined["num_envs"] == 16
+    per_round, medians, goals = train_speed.summarise([{"meta": r} for r in results], [500.0] * 4)
+    assert per_round == {"meta": [1.0, 0.8, 0.9]} and medians == {"meta": 0.9}
+    assert list(goals.values()) == [False, False]
