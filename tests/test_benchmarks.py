@@ -224,3 +224,10 @@ def test_train_speed_combines_a_methods_rounds():
     per_round, medians, goals = train_speed.summarise([{"meta": r} for r in results], [500.0] * 4)
     assert per_round == {"meta": [1.0, 0.8, 0.9]} and medians == {"meta": 0.9}
     assert list(goals.values()) == [False, False]
+
+
+def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
+    result = load_script("view_profile").profile(views=30, seed=0)
+    assert result["same_pixels"] and result["boxes"] == 8  # four walls, the goal, three occluders
+    assert 0 < result["boxes_drawn_when_culled"] < 8
+    assert all(result[mode][part] > 0 for mode in ("whole", "culled") for part in ("pose", "scene", "draw", "read"))
