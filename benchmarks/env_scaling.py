@@ -344,8 +344,8 @@ def main(argv: list[str] | None = None) -> dict:
     if met is None:
         verdict += " (MiniWorld not measured)" if not peer_rate else f" (N={GOAL_NUM_ENVS} not timed)"
     else:
-        rounds_met = sum(value >= GOAL_MULTIPLE for value in per_round[GOAL_NUM_ENVS])
-        verdict += f" (median; met in {rounds_met} of {args.rounds} rounds; {machine['usable_cpus']} usable CPUs)"
+        met_in = peer.rounds_met(per_round[GOAL_NUM_ENVS], GOAL_MULTIPLE)
+        verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
     print(f"goal  {goal}: {verdict}")
 
     split = None

@@ -49,8 +49,10 @@ import peer  # noqa: E402 (needs the path above)
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
-AEC_GOAL = 1.0  # the AEC env must reach this multiple of MiniWorld's steps/s
-CORE_GOAL = 3.0  # the core at N=64 must reach this multiple of MiniWorld's steps/s
+GOALS = (  # (figure, the multiple of MiniWorld's steps/s it must reach, the goal's name)
+    ("aec", 1.0, "aec >= 1x MiniWorld"),
+    ("core_n64", 3.0, "core N=64 >= 3x MiniWorld"),
+)
 
 
 def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
@@ -263,10 +265,7 @@ def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None):
         return {}, {}, {}
     per_round = {key: peer.bracketed_ratios([r[key] for r in rounds], peer_rates) for key in rounds[0]}
     medians = {key: statistics.median(values) for key, values in per_round.items()}
-    goals = {
-        f"aec >= {AEC_GOAL:g}x MiniWorld": medians["aec"] >= AEC_GOAL,
-        f"core N=64 >= {CORE_GOAL:g}x MiniWorld": medians["core_n64"] >= CORE_GOAL,
-    }
+    goals = {name: medians[key] >= multiple for key, multiple, name in GOALS}
     return per_round, medians, goals
 
 
@@ -325,10 +324,9 @@ def main() -> None:
         print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
         for key, values in per_round.items():
             print(f"ratio {key:<16}{peer.spread(values, 2, 'x')}")
-        for goal, met in goals.items():
-            key = "aec" if goal.startswith("aec") else "core_n64"
-            rounds_met = sum(value >= (AEC_GOAL if key == "aec" else CORE_GOAL) for value in per_round[key])
-            print(f"goal  {goal}: {'MET' if met else 'NOT MET'} (median; met in {rounds_met} of {args.rounds} rounds)")
+        for key, multiple, name in GOALS:
+            verdict = "MET" if goals[name] else "NOT MET"
+            print(f"goal  {name}: {verdict} (median; {peer.rounds_met(per_round[key], multiple)})")
     else:
         print("ratios and goals: unknown, MiniWorld could not be measured")
 

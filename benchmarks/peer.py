@@ -114,15 +114,6 @@ class MiniWorld:
         return why + (": " + " | ".join(tail) if tail else "")
 
 
-def bench_miniworld(seconds: float, warmup: float, seed: int) -> tuple[dict | None, str | None]:
-    """One measurement of MiniWorld in a fresh child: ``({"steps_per_s": ..., **info}, None)`` or ``(None, why)``."""
-    try:
-        with MiniWorld(seed) as peer:
-            return {"steps_per_s": peer.measure(seconds, warmup), **peer.info}, None
-    except PeerUnavailable as error:
-        return None, str(error)
-
-
 @dataclass
 class Rounds:
     """What :func:`in_rounds` measured: ours per round, and MiniWorld around the rounds."""
@@ -194,6 +185,11 @@ def bracketed_ratios(ours: list[float], peer: list[float]) -> list[float]:
     if len(peer) != len(ours) + 1:
         raise ValueError(f"{len(peer)} peer figures for {len(ours)} rounds: expected {len(ours) + 1}")
     return [mine / ((before + after) / 2) for mine, before, after in zip(ours, peer, peer[1:], strict=False)]
+
+
+def rounds_met(ratios: list[float], multiple: float) -> str:
+    """How often a goal of ``multiple`` was reached: ``"met in k of n rounds"``."""
+    return f"met in {sum(ratio >= multiple for ratio in ratios)} of {len(ratios)} rounds"
 
 
 def spread(values: list[float], digits: int, unit: str = "") -> str:

@@ -247,8 +247,8 @@ def main() -> None:
     for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
         verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
         if met is not None:
-            rounds_met = sum(value >= multiple for value in per_round["meta"])
-            verdict += f" (median; met in {rounds_met} of {args.rounds} rounds; {machine['usable_cpus']} usable CPUs)"
+            met_in = peer.rounds_met(per_round["meta"], multiple)
+            verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
         print(f"goal  {goal}: {verdict}")
 
     if "gpu" in machine and "meta" in ours:

@@ -132,6 +132,7 @@ def test_each_round_is_divided_by_the_peer_figures_around_it(peer):
         peer.bracketed_ratios([1.0, 2.0], [1.0, 2.0])
     assert peer.spread([0.5, 0.9, 0.7], 2, "x") == "0.70x (0.50x, 0.90x, 0.70x)"
     assert peer.spread([0.5], 1) == "0.5"
+    assert peer.rounds_met([0.9, 1.0, 1.2], 1.0) == "met in 2 of 3 rounds"
 
 
 def test_the_peer_line_gives_every_figure_or_why_there_is_none(peer):
@@ -193,11 +194,13 @@ def test_in_rounds_goes_on_when_the_peer_cannot_start(peer, monkeypatch):
 
 
 def test_miniworld_child_process_measures_or_says_why(peer):
-    result, why = peer.bench_miniworld(seconds=0.3, warmup=0.1, seed=0)
     if importlib.util.find_spec("miniworld") is None:  # the bench extra is not installed (as in CI)
-        assert result is None and "pip install miniworld==2.1.0" in why
+        with pytest.raises(peer.PeerUnavailable, match=r"pip install miniworld==2\.1\.0"):
+            peer.MiniWorld(seed=0)
     else:
-        assert why is None and result["steps_per_s"] > 0 and result["obs_shape"] == [60, 80, 3]
+        with peer.MiniWorld(seed=0) as miniworld:
+            assert miniworld.measure(seconds=0.3, warmup=0.1) > 0 and miniworld.measure(0.2, 0.0) > 0
+            assert miniworld.info["obs_shape"] == [60, 80, 3]
 
 
 def test_env_speed_judges_the_goals_on_the_median_of_the_bracketed_rounds():
