@@ -39,14 +39,13 @@ CULL_MARGIN = 0.01  # metres: a box counts as out of sight only this far beyond 
 class Frustum:
     """The eye camera's view volume in its own frame, as five planes (four sides and the near plane).
 
-    A box is out of sight when, for one plane, its whole extent lies beyond it (the box's support distance
-    along the plane's outward normal is below ``-CULL_MARGIN``), which never drops a box that reaches into
-    the view.
+    A box is out of sight when it lies wholly beyond one of the planes, by more than ``CULL_MARGIN``; a box that
+    reaches into the view is never dropped (a box beyond no single plane may still be out of sight: it is kept).
     """
 
     def __init__(self, model, camera: int, width: int, height: int):
         tan_v = math.tan(math.radians(model.cam_fovy[camera]) / 2)
-        tan_h = tan_v * width / height  # MuJoCo widens the vertical field of view by the viewport's aspect
+        tan_h = tan_v * width / height  # the horizontal half-angle: the vertical one stretched by the aspect
         znear = model.vis.map.znear * model.stat.extent
         # outward normals in the camera frame (x right, y up, the camera looks along -z) and offsets
         sides = np.array([[1.0, 0.0, tan_h], [-1.0, 0.0, tan_h], [0.0, 1.0, tan_v], [0.0, -1.0, tan_v]])
