@@ -122,11 +122,12 @@ def test_camera_head_takes_part_in_collisions():
         data.ctrl[:2] = sim._wheel_targets[move]
         for _ in range(sim.substeps):
             mujoco.mj_step(model, data)
-            touches += [c for c in data.contact[: data.ncon] if {c.geom1, c.geom2} & robot_top]
+            # the geom ids, read now: a contact is a view into data's buffer, which the next substep rewrites
+            touches += [(c.geom1, c.geom2) for c in data.contact[: data.ncon] if {c.geom1, c.geom2} & robot_top]
         sim.move([move])
         sim.look([look])
         if sim.done[0]:
             sim.reset()
     assert touches, "the replay no longer brings the camera head into contact: find another one (see the docstring)"
-    other = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for c in touches for g in (c.geom1, c.geom2)}
+    other = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for pair in touches for g in pair}
     assert other & {"occluder_0", "occluder_1", "occluder_2"}
