@@ -20,8 +20,11 @@ seconds):
    rooms, sampling the resident memory (RSS) of this process after the warm-up and then about every E/100
    episodes. It prints the RSS at the start, at the end and its maximum, the growth, and "flat" when the
    maximum stays within 5 % of the start.
-4. When N = 64 is among them: where the bare ``Simulator(num_envs=64)``'s cycle spends its time (physics,
-   renders, look, resets, ms per cycle) and how much more a cycle of the TorchRL env at N = 64 takes.
+4. When N = 64 is among them: in each round, right after the TorchRL env at N = 64, the bare
+   ``Simulator(num_envs=64)`` with the same random actions, timed by part (physics, renders, look, resets, ms
+   per cycle); the report gives each part's median over the rounds and how much more a cycle of the TorchRL env
+   took than the bare simulator's in the same round (each round's difference and their median: the machine's
+   speed drifts over minutes, so only figures timed side by side compare).
 
 It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio, each the median
 over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against N with
@@ -309,12 +312,18 @@ def main(argv: list[str] | None = None) -> dict:
         print()
         gc.collect()
 
+    splits = []  # the bare simulator at N = GOAL_NUM_ENVS, timed in each round right after the TorchRL env
+
     def measure(i: int) -> dict[int, float]:
         rates = {}
         for n in dict.fromkeys(args.num_envs):  # in the order given, each N once
             rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed)
             print(f"round {i + 1}: make_env(num_envs={n}) {rates[n]:.1f} cycles/s", flush=True)
             gc.collect()
+            if n == GOAL_NUM_ENVS:
+                splits.append(core_split(n, args.seconds, args.warmup, args.seed))
+                print(f"round {i + 1}: Simulator(num_envs={n}) alone {splits[-1]['cycles_per_s']:.1f} cycles/s")
+                gc.collect()
         return rates
 
     if args.no_peer:
@@ -349,16 +358,22 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"goal  {goal}: {verdict}")
 
     split = None
-    if GOAL_NUM_ENVS in rates:
-        split = core_split(GOAL_NUM_ENVS, args.seconds, args.warmup, args.seed)
-        per_cycle = sum(v for k, v in split.items() if k != "cycles_per_s")
-        wrapper = GOAL_NUM_ENVS / rates[GOAL_NUM_ENVS] - per_cycle
-        parts = ", ".join(f"{k} {1e3 * v:.1f} ms" for k, v in split.items() if k != "cycles_per_s")
+    if splits:
+        parts = [part for part in splits[0] if part != "cycles_per_s"]
+        split = {part: statistics.median(s[part] for s in splits) for part in (*parts, "cycles_per_s")}
+        extra = [  # ms more per cycle for the TorchRL env than for the bare simulator, round by round
+            1e3 * (GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - sum(s[part] for part in parts))
+            for r, s in zip(rounds, splits, strict=True)
+        ]
+        split["torchrl_overhead"] = statistics.median(extra) / 1e3
         print()
         alone = f"split Simulator(num_envs={GOAL_NUM_ENVS}) alone: {split['cycles_per_s']:.1f} cycles/s"
-        print(f"{alone}; per cycle: {parts}")
-        print(f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator: {1e3 * wrapper:+.1f} ms per cycle")
-        split["torchrl_overhead"] = wrapper
+        print(f"{alone}; per cycle: " + ", ".join(f"{part} {1e3 * split[part]:.1f} ms" for part in parts))
+        print(
+            f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator, same round: "
+            f"{peer.spread(extra, 1, ' ms')} per cycle"
+        )
+        split["torchrl_overhead_rounds"] = [value / 1e3 for value in extra]
 
     rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]
     write_csv(args.csv, CSV_COLUMNS, rows)
@@ -380,6 +395,7 @@ def main(argv: list[str] | None = None) -> dict:
         "goal": goal,
         "goal_met": met,
         "core_split_s_per_cycle": split,
+        "core_split_rounds": splits,
         "memory": memory,
         "csv": str(args.csv),
         "plot": str(args.plot),

@@ -55,6 +55,21 @@ def test_env_scaling_writes_csv_plot_and_memory(env_scaling, tmp_path):
     assert report["goal_met"] is None  # neither MiniWorld nor N=64 was measured
 
 
+def test_env_scaling_times_the_bare_simulator_in_each_round(env_scaling, tmp_path, monkeypatch):
+    monkeypatch.setattr(env_scaling, "GOAL_NUM_ENVS", 2)  # the split's N, small enough for a test
+    argv = ["--num-envs", "1", "2", "--seconds", "0.2", "--warmup", "0.05", "--no-peer", "--rounds", "2"]
+    report = env_scaling.main([*argv, "--csv", str(tmp_path / "rates.csv"), "--plot", str(tmp_path / "rates.png")])
+
+    split = report["core_split_s_per_cycle"]
+    assert all(split[part] > 0 for part in ("physics", "render", "cycles_per_s"))
+    extra = split["torchrl_overhead_rounds"]
+    assert len(extra) == 2  # one difference per round, each against that round's TorchRL figure
+    assert split["torchrl_overhead"] == pytest.approx(sum(extra) / 2)
+    parts = ("physics", "render", "look", "reset")
+    for rates, alone, difference in zip(report["rounds"], report["core_split_rounds"], extra, strict=True):
+        assert difference == pytest.approx(2 / rates[2] - sum(alone[part] for part in parts))
+
+
 def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     with pytest.raises(SystemExit):
         env_scaling.main(["--num-envs", "4", "0"])
