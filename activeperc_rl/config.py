@@ -119,7 +119,8 @@ class TrainConfig:
     """Finished episodes the logged success rate and mean return are averaged over (progress bar, metrics.csv,
     TensorBoard)."""
     checkpoint_every: float = 60.0
-    """Seconds between checkpoints (one is also written as the run starts, at the end and on Ctrl-C or SIGTERM)."""
+    """Seconds between checkpoints (one is also written as the run starts, at the end and on Ctrl-C, SIGTERM or
+    SIGHUP)."""
     eval_episodes: int = 100
     """Held-out episodes evaluated at the end of training (for the learned and a random policy); 0 skips it."""
     env: EnvConfig = field(default_factory=EnvConfig)

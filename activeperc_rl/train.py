@@ -2,7 +2,7 @@
 
 A run directory holds ``config.yaml`` (the full config), ``metrics.csv`` (one row per iteration),
 ``tb/`` (TensorBoard), ``checkpoint.pt`` (atomic; when the run has started, every ``checkpoint_every``
-seconds, at the end and on Ctrl-C or SIGTERM) and, after a finished run, ``eval.json`` (the learned and
+seconds, at the end and on Ctrl-C, SIGTERM or SIGHUP) and, after a finished run, ``eval.json`` (the learned and
 the random policy on held-out layouts). One process at a time trains into it (``activeperc_rl.rundir``).
 
 Reproducibility: the same config on CPU gives the same run (networks, sampling and layouts are
@@ -41,6 +41,7 @@ from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_ya
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import make_method
 from activeperc_rl.rundir import check_fresh, claim_run_dir
+from activeperc_rl.signals import Terminal, stop_signals
 from activeperc_rl.workers import WorkerError
 
 
@@ -193,23 +194,25 @@ def load_run_config(out: str | Path) -> TrainConfig:
 
 @contextmanager
 def _interruptible():
-    """Turn the first Ctrl-C (SIGINT) or SIGTERM into a flag the loop polls; a second one interrupts at once.
-
-    SIGTERM is what ``kill``, ``docker stop``, systemd and batch schedulers send before they kill a job.
-    """
+    """Turn the first stop signal (:func:`~activeperc_rl.signals.stop_signals`: Ctrl-C, SIGTERM, SIGHUP) into a
+    flag the loop polls; a second one interrupts at once. After a SIGHUP, what would go to the terminal goes to
+    ``/dev/null``."""
     flag = {"set": False}
     if threading.current_thread() is not threading.main_thread():
         yield lambda: False
         return
+    terminal = Terminal()
 
     def handler(signum, frame):
+        if signum == signal.SIGHUP:
+            terminal.hung_up()
         if flag["set"]:
             raise KeyboardInterrupt
         flag["set"] = True
         name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
         print(f"\n{name}: finishing this iteration, then saving a checkpoint ({name} again to abort)", flush=True)
 
-    previous = {number: signal.signal(number, handler) for number in (signal.SIGINT, signal.SIGTERM)}
+    previous = {number: signal.signal(number, handler) for number in stop_signals()}
     try:
         yield lambda: flag["set"]
     finally:

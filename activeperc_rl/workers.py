@@ -14,9 +14,9 @@ once, joined along the rooms.
 - Own random streams: each worker seeds torch from ``torch_seed`` and its index, so a run repeats
   itself; its sampled actions differ from an in-process run's, whose actions come from the main
   process's stream.
-- Ctrl-C and SIGTERM reach the main process only (the workers ignore both, even when they are sent
-  to the whole process group), which saves its checkpoint and then shuts the workers down; a worker
-  whose main process is gone exits. A worker that dies (killed, out of memory) is a
+- Ctrl-C, SIGTERM and SIGHUP reach the main process only (the workers ignore them, even when they are sent
+  to the whole process group, as a closing terminal sends SIGHUP), which saves its checkpoint and then shuts
+  the workers down; a worker whose main process is gone exits. A worker that dies (killed, out of memory) is a
   :class:`WorkerError` naming it and how it died.
 """
 
@@ -25,8 +25,10 @@ from __future__ import annotations
 import copy
 import os
 import signal
+import threading
 import traceback
 from dataclasses import dataclass
+from multiprocessing import resource_tracker
 
 import numpy as np
 import torch
@@ -103,6 +105,7 @@ class ProcessCollector:
         bounds = np.linspace(0, num_envs, workers + 1).round().astype(int)
         threads = max(1, usable_cpus() // workers)
         context = mp.get_context("spawn")
+        _start_resource_tracker()
         self._conns, self._processes, self._buffers = [], [], []
         for k in range(workers):
             spec = _WorkerSpec(
@@ -196,10 +199,27 @@ class ProcessCollector:
         return WorkerError(f"collector worker {k} died ({how}){hint}")
 
 
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker, unless it runs, with SIGHUP ignored for its whole life.
+
+    The tracker is a process of its own in the run's process group: a closing terminal's SIGHUP would kill it
+    while the run saves its checkpoint (and the run would warn that resources may leak). The workers ignore
+    SIGHUP for the same reason (:func:`_work`).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        resource_tracker.ensure_running()  # signal dispositions can only be set from the main thread
+        return
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)  # a new process keeps what its parent ignores
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.signal(signal.SIGHUP, previous)
+
+
 def _work(conn, spec: _WorkerSpec) -> None:
     """A worker's life: build the env and collector of its rooms, then answer ``next`` until ``close``."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(number, signal.SIG_IGN)
     # llvmpipe draws with as many threads as there are cores unless told; share the cores among the workers. A
     # worker with one core draws in its own thread (0): the same pixels without waiting for a helper thread
     os.environ.setdefault("LP_NUM_THREADS", str(spec.threads if spec.threads > 1 else 0))

@@ -1,6 +1,15 @@
 """Shared helpers for the test suite."""
 
+import fcntl
 import math
+import os
+import pty
+import select
+import signal
+import struct
+import subprocess
+import termios
+import time
 
 import numpy as np
 
@@ -35,3 +44,39 @@ def assert_same_view(a, b):
     diff = np.abs(a.astype(int) - b.astype(int))
     assert diff.max() <= 1
     assert (diff > 0).mean() < 1e-3
+
+
+class PseudoTerminal:
+    """A terminal (a pty, 24 rows of 100 columns) for a child process's stdout and stderr, which the test reads
+    (so that the child never blocks on a full terminal) and can hang up, as a closing terminal window or a
+    dropped SSH session does: from then on the child's writes to it fail."""
+
+    def __init__(self):
+        self.master, self._child_side = pty.openpty()
+        fcntl.ioctl(self._child_side, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+        self.seen = bytearray()
+
+    def start(self, command: list[str]) -> subprocess.Popen:
+        """Start ``command`` writing to this terminal, with SIGHUP at its default (also when the tests run under
+        ``nohup``)."""
+        process = subprocess.Popen(
+            command,
+            stdin=subprocess.DEVNULL,
+            stdout=self._child_side,
+            stderr=self._child_side,
+            start_new_session=True,
+            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL),
+        )
+        os.close(self._child_side)
+        return process
+
+    def read_until(self, done, timeout: float = 120) -> None:
+        """Read what the child writes until ``done()`` is true or ``timeout`` seconds have passed."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not done():
+            if select.select([self.master], [], [], 0.2)[0]:
+                self.seen += os.read(self.master, 65536)
+
+    def hang_up(self) -> None:
+        """Close the terminal: the child's writes to it fail from now on."""
+        os.close(self.master)

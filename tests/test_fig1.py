@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import PseudoTerminal
 
 from activeperc_rl.config import TrainConfig, load_yaml
 
@@ -153,6 +154,23 @@ def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
     assert "checkpoint saved" in (runs / "joint_fov60" / "seed0" / "train.log").read_text()
     task = sweep.Task(FIG1 / "configs" / "joint_fov60.yaml", 0)
     assert "--resume" in sweep.train_command(task, task.run_dir(runs), 100000, 100, [])
+
+
+def test_a_hangup_stops_the_runs_as_ctrl_c_does(tmp_path):
+    """SIGHUP to the sweep, whose terminal is gone (a dropped SSH session): no run is left orphaned."""
+    runs = tmp_path / "runs"
+    argv = [sys.executable, str(FIG1 / "sweep.py"), "--only", "joint_fov60", "--seeds", "0", "--frames", "100000"]
+    argv += ["--runs", str(runs), "--results", str(tmp_path / "results"), *TINY]
+    metrics = runs / "joint_fov60" / "seed0" / "metrics.csv"
+    terminal = PseudoTerminal()
+    process = terminal.start(argv)
+    terminal.read_until(lambda: metrics.is_file() and len(metrics.read_text().splitlines()) > 3)
+    terminal.hang_up()
+    process.send_signal(signal.SIGHUP)
+    assert process.wait(timeout=120) == 130
+    assert b"sweep: start joint_fov60" in terminal.seen
+    assert "checkpoint saved" in (runs / "joint_fov60" / "seed0" / "train.log").read_text()
+    assert not (runs / "joint_fov60" / "seed0" / "eval.json").exists()
 
 
 def test_confidence_intervals(aggregate):

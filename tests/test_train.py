@@ -13,12 +13,14 @@ import imageio.v3 as iio
 import pytest
 import torch
 import yaml
+from conftest import PseudoTerminal
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
 from activeperc_rl.checkpoint import MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
 from activeperc_rl.rundir import claim_run_dir
+from activeperc_rl.signals import stop_signals
 
 # A few thousand frames on tiny settings: short episodes so that some end inside the run.
 TINY = [
@@ -291,6 +293,61 @@ def test_ctrl_c_saves_and_resume_finishes(tmp_path):
     assert frames == sorted(set(frames)) and frames[-1] >= target
     assert (out / "eval.json").exists()
     assert not [p for p in os.listdir(out) if p.endswith(".tmp")]
+
+
+def rows_logged(out) -> int:
+    return len(read_metrics(out)) if (out / "metrics.csv").exists() else 0
+
+
+def test_sighup_stops_a_run_unless_the_process_ignores_it():
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup starts a process
+    try:
+        assert stop_signals() == [signal.SIGINT, signal.SIGTERM]
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        assert stop_signals() == [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+    finally:
+        signal.signal(signal.SIGHUP, previous)
+
+
+def test_a_hangup_saves_a_checkpoint_though_the_terminal_is_gone(tmp_path):
+    """SIGHUP, as a closing terminal or a dropped SSH session sends: the run has its progress bar on that
+    terminal, which is gone (writes to it fail), and still finishes its iteration, saves and exits."""
+    out = tmp_path / "run"
+    args = [arg for arg in TINY if arg != "--no-progress"]
+    terminal = PseudoTerminal()
+    command = [sys.executable, "-m", "activeperc_rl.cli", *args, "--out", str(out), "--frames", "10000000"]
+    process = terminal.start(command)
+    terminal.read_until(lambda: rows_logged(out) >= 3)
+    terminal.hang_up()
+    process.send_signal(signal.SIGHUP)
+    assert process.wait(timeout=120) == 0
+    assert b"frame/s" in terminal.seen  # the progress bar was on the terminal
+    state = load_checkpoint(out / "checkpoint.pt")
+    assert state["frames"] == int(read_metrics(out)[-1]["frames"]) < 10_000_000
+
+
+def test_a_run_under_nohup_goes_on_after_a_hangup(tmp_path):
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),  # what nohup does
+    )
+    deadline = time.monotonic() + 120
+    while rows_logged(out) < 2 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    process.send_signal(signal.SIGHUP)
+    rows = rows_logged(out)
+    while rows_logged(out) < rows + 3 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert process.poll() is None and rows_logged(out) >= rows + 3  # still training
+    process.send_signal(signal.SIGINT)
+    output, _ = process.communicate(timeout=120)
+    assert process.returncode == 0 and "checkpoint saved" in output, output
+    assert "SIGHUP" not in output
 
 
 def test_eval_cli(tmp_path, capsys):

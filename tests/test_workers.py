@@ -152,17 +152,22 @@ def test_training_with_workers_repeats_itself(tmp_path):
             assert torch.equal(value, sb[name][key]), (name, key)
 
 
-@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["ctrl-c", "sigterm", "sighup"])
 def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop):
-    """SIGINT (a terminal's Ctrl-C) or SIGTERM (a scheduler's stop) to the whole process group, across
-    curriculum's switch of environments."""
+    """SIGINT (a terminal's Ctrl-C), SIGTERM (a scheduler's stop) or SIGHUP (a closing terminal) to the whole
+    process group, across curriculum's switch of environments."""
     out = tmp_path / "run"
     command = [
         sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
         "--method", "curriculum", "--curriculum-fraction", "0.00003", "--collect-workers", "2",
     ]  # fmt: skip
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL),  # also when the tests run under nohup
     )
     deadline = time.monotonic() + 240
     rows = []
@@ -173,6 +178,7 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 0, output
     assert "checkpoint saved" in output
+    assert "Traceback" not in output and "resource_tracker" not in output, output  # no helper process died
     assert load_checkpoint(out / "checkpoint.pt")["frames"] == int(read_metrics(out)[-1]["frames"]) >= 12 * 32
     assert not survivors(process.pid), "a worker outlived the run"
     target = str(load_checkpoint(out / "checkpoint.pt")["frames"] + 64)

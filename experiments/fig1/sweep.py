@@ -12,8 +12,8 @@ finished so far, success_rate, mean_return; at most 200 rows) and its row is mer
 
 Resumable: run the same command again and finished runs are skipped, interrupted ones continue from
 their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. Ctrl-C stops
-every run cleanly (each saves its checkpoint first), and so does a SIGTERM. Two sweeps cannot run on
-the same ``--runs`` folder at once (a lock file refuses the second).
+every run cleanly (each saves its checkpoint first), and so do a SIGTERM and the SIGHUP of a closing
+terminal. Two sweeps cannot run on the same ``--runs`` folder at once (a lock file refuses the second).
 
 Cores: the machine's CPUs are split into ``--jobs`` groups of ``--cores-per-job`` (default 1 core per
 run, as many runs at once as cores) and each run is pinned to its group, so its physics threads and its
@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import csv
 import fcntl
+import functools
 import json
 import os
 import signal
@@ -50,6 +51,7 @@ from activeperc_env.core import usable_cpus
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS
 from activeperc_rl.rundir import run_files
+from activeperc_rl.signals import Terminal, stop_signals
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
@@ -345,11 +347,18 @@ def main(argv: list[str] | None = None) -> int:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             parser.error(f"another sweep.py is running on {str(args.runs)!r}; wait for it or stop it first")
-        signal.signal(signal.SIGTERM, _terminate)  # a kill stops the runs as Ctrl-C does: none is orphaned
+        # a kill or a closing terminal stops the runs as Ctrl-C does: none is orphaned
+        terminal = Terminal()
+        for number in stop_signals():
+            if number != signal.SIGINT:  # Ctrl-C raises KeyboardInterrupt already
+                signal.signal(number, functools.partial(_terminate, terminal))
         return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
 
 
-def _terminate(signum, frame):
+def _terminate(terminal: Terminal, signum, frame):
+    """Stop the sweep as Ctrl-C does; after a SIGHUP, with what it prints going to ``/dev/null``."""
+    if signum == signal.SIGHUP:
+        terminal.hung_up()
     raise KeyboardInterrupt
 
 
