@@ -3,15 +3,18 @@
 A run stops cleanly (it finishes its iteration and saves a checkpoint) on Ctrl-C (SIGINT), on SIGTERM (what
 ``kill``, ``docker stop``, systemd and batch schedulers send before they kill a job) and on SIGHUP, what a closing
 terminal or a dropped SSH session sends, unless the process ignores SIGHUP (``nohup`` starts it so; it then goes
-on ignoring it). After a SIGHUP the terminal is gone and writing to it fails, so whatever wrote to it must write
-elsewhere before the run prints again: :class:`Terminal` remembers which standard streams wrote to a terminal
-(known only before the hangup: a hung-up terminal no longer answers as one) and points them at ``/dev/null``.
+on ignoring it). After a SIGHUP the terminal is gone and writing to it fails, and so is any program the run
+wrote to through a pipe from that terminal (``activeperc-train | tee train.log``: the terminal's SIGHUP stops
+``tee`` too), so the run must write elsewhere before it prints again: :class:`Terminal` remembers which standard
+streams wrote to a terminal or a pipe (known only before the hangup: a hung-up terminal no longer answers as
+one) and points them at ``/dev/null``.
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import stat
 
 
 def stop_signals() -> list[signal.Signals]:
@@ -23,14 +26,14 @@ def stop_signals() -> list[signal.Signals]:
 
 
 class Terminal:
-    """Which of this process's stdout and stderr write to a terminal now, to point them at ``/dev/null`` when it
-    hangs up."""
+    """Which of this process's stdout and stderr write to a terminal or a pipe now, to point them at ``/dev/null``
+    when the terminal hangs up (files stay as they are)."""
 
     def __init__(self):
-        self.fds = [fd for fd in (1, 2) if _is_tty(fd)]
+        self.fds = [fd for fd in (1, 2) if _is_tty_or_pipe(fd)]
 
     def hung_up(self) -> None:
-        """The terminal is gone: what was written to it goes to ``/dev/null`` from now on."""
+        """The terminal is gone: what was written to it, or to a pipe, goes to ``/dev/null`` from now on."""
         devnull = os.open(os.devnull, os.O_WRONLY)
         try:
             for fd in self.fds:
@@ -39,8 +42,8 @@ class Terminal:
             os.close(devnull)
 
 
-def _is_tty(fd: int) -> bool:
+def _is_tty_or_pipe(fd: int) -> bool:
     try:
-        return os.isatty(fd)
+        return os.isatty(fd) or stat.S_ISFIFO(os.fstat(fd).st_mode)
     except OSError:
         return False

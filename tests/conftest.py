@@ -46,6 +46,11 @@ def assert_same_view(a, b):
     assert (diff > 0).mean() < 1e-3
 
 
+def default_sighup() -> None:
+    """SIGHUP at its default in a child process (a ``preexec_fn``), also when the tests run under ``nohup``."""
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 class PseudoTerminal:
     """A terminal (a pty, 24 rows of 100 columns) for a child process's stdout and stderr, which the test reads
     (so that the child never blocks on a full terminal) and can hang up, as a closing terminal window or a
@@ -65,7 +70,7 @@ class PseudoTerminal:
             stdout=self._child_side,
             stderr=self._child_side,
             start_new_session=True,
-            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL),
+            preexec_fn=default_sighup,
         )
         os.close(self._child_side)
         return process

@@ -13,7 +13,7 @@ import imageio.v3 as iio
 import pytest
 import torch
 import yaml
-from conftest import PseudoTerminal
+from conftest import PseudoTerminal, default_sighup
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
@@ -322,6 +322,26 @@ def test_a_hangup_saves_a_checkpoint_though_the_terminal_is_gone(tmp_path):
     process.send_signal(signal.SIGHUP)
     assert process.wait(timeout=120) == 0
     assert b"frame/s" in terminal.seen  # the progress bar was on the terminal
+    state = load_checkpoint(out / "checkpoint.pt")
+    assert state["frames"] == int(read_metrics(out)[-1]["frames"]) < 10_000_000
+
+
+def test_a_hangup_saves_a_checkpoint_though_the_tee_it_wrote_to_is_gone(tmp_path):
+    """``activeperc-train 2>&1 | tee train.log`` in a terminal that closes: SIGHUP stops the tee and the run; the run
+    must not die of writing into the tee's closed pipe before it saves."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
+    tee, into_tee = os.pipe()
+    process = subprocess.Popen(
+        command, stdout=into_tee, stderr=into_tee, start_new_session=True, preexec_fn=default_sighup
+    )
+    os.close(into_tee)
+    deadline = time.monotonic() + 120
+    while rows_logged(out) < 3 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    os.close(tee)  # the tee is gone: writing into the pipe fails from now on
+    process.send_signal(signal.SIGHUP)
+    assert process.wait(timeout=120) == 0
     state = load_checkpoint(out / "checkpoint.pt")
     assert state["frames"] == int(read_metrics(out)[-1]["frames"]) < 10_000_000
 
