@@ -121,6 +121,15 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     assert 0 <= float(meta["min_entropy"]) <= float(meta["looker_entropy"]) <= math.log(3) + 1e-6
     assert meta["phi2"] in ("start", "hold", "pan", "mixed")
     assert fixed["run"] == "fixed_forward_fov60/seed3" and fixed["pan_rate"] == fixed["phi2"] == ""
+    # more runs added to a committed table: a run folder's row replaces the CSV's row of the same run
+    old = tmp_path / "old.csv"
+    with open(old, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=looker_stats.COLUMNS)
+        writer.writeheader()
+        writer.writerows([fixed, meta | {"frames": "1"}])  # an older row of the meta run
+    extended = tmp_path / "extended.csv"
+    assert looker_stats.main(["--from-csv", str(old), str(run_dirs[0]), "--csv", str(extended)]) == 0
+    assert read_csv(extended) == sorted([meta, fixed], key=lambda row: row["run"])
 
     monkeypatch.setattr(aggregate, "FULL_WINDOW", 1)  # tiny runs finish a few episodes: draw their curves
     doc = tmp_path / "doc.md"

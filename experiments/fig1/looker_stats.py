@@ -11,12 +11,15 @@ untrained phi2's (``looker_hold_prob`` of the run's ``config.yaml``: 0.23 nats f
 pan, ``mixed`` otherwise. Runs of other methods get empty looker columns.
 
 ``--csv`` also writes the rows, ``--doc`` writes them as a Markdown table between the markers ``<!-- NAME -->``
-and ``<!-- /NAME -->`` (``--marker NAME``), and ``--from-csv`` reads the rows from such a CSV instead of from
-run folders (from the repository root)::
+and ``<!-- /NAME -->`` (``--marker NAME``), and ``--from-csv`` reads the rows from such a CSV; with run folders
+too, their rows are added to the CSV's (replacing a row of the same run) and all are sorted by run (from the
+repository root)::
 
     python experiments/fig1/looker_stats.py experiments/fig1/runs/meta_eps0.?_fov*/seed* \
         --csv experiments/fig1/results/looker.csv
     python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv --doc docs/reproduction.md
+    python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv NEW_RUNS... \
+        --csv experiments/fig1/results/looker.csv
 """
 
 from __future__ import annotations
@@ -113,7 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     """Print (and write as asked) one row per run folder, or the rows of ``--from-csv``; 2 on bad input."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="*", type=Path, metavar="RUN_DIR", help="training run folders")
-    parser.add_argument("--from-csv", type=Path, help="read the rows from a CSV this script wrote, not from runs")
+    parser.add_argument(
+        "--from-csv", type=Path, help="read rows from a CSV this script wrote (the run folders' rows are added)"
+    )
     parser.add_argument("--last", type=int, default=20, help="iterations averaged at the end of each run (20)")
     parser.add_argument("--csv", type=Path, help="also write the rows to this CSV file")
     parser.add_argument("--doc", type=Path, help="also write the Markdown table into this file, between the markers")
@@ -121,15 +126,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.last < 1:
         parser.error(f"--last must be >= 1, got {args.last}")
-    if bool(args.runs) == bool(args.from_csv):
-        parser.error("give run folders or --from-csv, not both")
+    if not args.runs and not args.from_csv:
+        parser.error("give run folders, --from-csv, or both")
     try:
+        rows = [run_row(run, args.last) for run in args.runs]
         if args.from_csv:
             if not args.from_csv.is_file():
                 raise ValueError(f"--from-csv {str(args.from_csv)!r} does not exist")
-            rows = read_summary(args.from_csv)
-        else:
-            rows = [run_row(run, args.last) for run in args.runs]
+            merged = {row["run"]: row for row in read_summary(args.from_csv)}
+            merged.update((row["run"], row) for row in rows)
+            rows = sorted(merged.values(), key=lambda row: row["run"]) if args.runs else list(merged.values())
         doc = None
         if args.doc:
             if not args.doc.is_file():
