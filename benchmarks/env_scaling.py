@@ -322,7 +322,8 @@ def main(argv: list[str] | None = None) -> dict:
             gc.collect()
             if n == GOAL_NUM_ENVS:
                 splits.append(core_split(n, args.seconds, args.warmup, args.seed))
-                print(f"round {i + 1}: Simulator(num_envs={n}) alone {splits[-1]['cycles_per_s']:.1f} cycles/s")
+                alone = splits[-1]["cycles_per_s"]
+                print(f"round {i + 1}: Simulator(num_envs={n}) alone {alone:.1f} cycles/s", flush=True)
                 gc.collect()
         return rates
 

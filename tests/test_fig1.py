@@ -87,7 +87,9 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     killed_at_start = runs / "fixed_forward_fov60" / "seed3"  # a run killed before its first checkpoint
     killed_at_start.mkdir(parents=True)
     (killed_at_start / "config.yaml").write_text("method: fixed_forward\n")
+    handlers = [signal.getsignal(number) for number in (signal.SIGTERM, signal.SIGHUP)]
     assert sweep.main([*base, "--frames", "64", *TINY]) == 0
+    assert [signal.getsignal(number) for number in (signal.SIGTERM, signal.SIGHUP)] == handlers  # restored
     assert "# removed config.yaml" in (killed_at_start / "train.log").read_text()
     rows = read_csv(results / "summary.csv")
     assert list(rows[0]) == list(sweep.SUMMARY_COLUMNS)

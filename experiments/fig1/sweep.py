@@ -347,12 +347,14 @@ def main(argv: list[str] | None = None) -> int:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             parser.error(f"another sweep.py is running on {str(args.runs)!r}; wait for it or stop it first")
-        # a kill or a closing terminal stops the runs as Ctrl-C does: none is orphaned
-        terminal = Terminal()
-        for number in stop_signals():
-            if number != signal.SIGINT:  # Ctrl-C raises KeyboardInterrupt already
-                signal.signal(number, functools.partial(_terminate, terminal))
-        return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+        # a kill or a closing terminal stops the runs as Ctrl-C does (which raises KeyboardInterrupt already)
+        stop = functools.partial(_terminate, Terminal())
+        previous = {number: signal.signal(number, stop) for number in stop_signals() if number != signal.SIGINT}
+        try:
+            return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+        finally:
+            for number, action in previous.items():
+                signal.signal(number, action)
 
 
 def _terminate(terminal: Terminal, signum, frame):
