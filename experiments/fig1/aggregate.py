@@ -137,7 +137,7 @@ def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:
         axes[0, column].set_ylabel("success rate (last 100 episodes)")
         axes[1, column].set_ylabel("mean return (last 100 episodes)")
         axes[1, column].set_xlabel("environment frames (E1 and E2 both for meta)")
-    axes[0, 0].legend(fontsize=8)
+        axes[0, column].legend(fontsize=8)  # each field of view its own: a config may have more seeds in one
     figure.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as temporary:
