@@ -113,7 +113,7 @@ def markdown_table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print (and write as asked) one row per run folder, or the rows of ``--from-csv``; 2 on bad input."""
+    """Print (and write as asked) one row per run folder and the rows of ``--from-csv``; 2 on bad input."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="*", type=Path, metavar="RUN_DIR", help="training run folders")
     parser.add_argument(
