@@ -207,8 +207,7 @@ def _start_resource_tracker() -> None:
     SIGHUP for the same reason (:func:`_work`).
     """
     if threading.current_thread() is not threading.main_thread():
-        resource_tracker.ensure_running()  # signal dispositions can only be set from the main thread
-        return
+        return  # signal dispositions can only be set from the main thread: the tracker starts as it would anyway
     previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)  # a new process keeps what its parent ignores
     try:
         resource_tracker.ensure_running()

@@ -362,19 +362,19 @@ def main(argv: list[str] | None = None) -> dict:
     if splits:
         parts = [part for part in splits[0] if part != "cycles_per_s"]
         split = {part: statistics.median(s[part] for s in splits) for part in (*parts, "cycles_per_s")}
-        extra = [  # ms more per cycle for the TorchRL env than for the bare simulator, round by round
-            1e3 * (GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - sum(s[part] for part in parts))
+        extra = [  # seconds more per cycle for the TorchRL env than for the bare simulator, round by round
+            GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - sum(s[part] for part in parts)
             for r, s in zip(rounds, splits, strict=True)
         ]
-        split["torchrl_overhead"] = statistics.median(extra) / 1e3
+        split["torchrl_overhead"] = statistics.median(extra)
+        split["torchrl_overhead_rounds"] = extra
         print()
         alone = f"split Simulator(num_envs={GOAL_NUM_ENVS}) alone: {split['cycles_per_s']:.1f} cycles/s"
         print(f"{alone}; per cycle: " + ", ".join(f"{part} {1e3 * split[part]:.1f} ms" for part in parts))
         print(
             f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator, same round: "
-            f"{peer.spread(extra, 1, ' ms')} per cycle"
+            f"{peer.spread([1e3 * value for value in extra], 1, ' ms')} per cycle"
         )
-        split["torchrl_overhead_rounds"] = [value / 1e3 for value in extra]
 
     rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]
     write_csv(args.csv, CSV_COLUMNS, rows)

@@ -40,6 +40,18 @@ def read_metrics(out):
         return list(csv.DictReader(f))
 
 
+def rows_logged(out) -> int:
+    """How many metrics rows the run in ``out`` has logged so far (0 before its ``metrics.csv`` exists)."""
+    return len(read_metrics(out)) if (out / "metrics.csv").exists() else 0
+
+
+def wait_for_rows(out, count: int, timeout: float = 120) -> None:
+    """Wait until the run in ``out`` (another process) has logged ``count`` metrics rows, or ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while rows_logged(out) < count and time.monotonic() < deadline:
+        time.sleep(0.2)
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_trains_from_the_cli(tmp_path, method):
     out = run_cli(tmp_path, "--method", method, "--frames", "2000", "--seed", "1")
@@ -277,9 +289,7 @@ def test_ctrl_c_saves_and_resume_finishes(tmp_path):
     out = tmp_path / "run"
     command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and len(read_metrics(out) if (out / "metrics.csv").exists() else []) < 3:
-        time.sleep(0.2)
+    wait_for_rows(out, 3)
     process.send_signal(signal.SIGINT)
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 0, output
@@ -293,10 +303,6 @@ def test_ctrl_c_saves_and_resume_finishes(tmp_path):
     assert frames == sorted(set(frames)) and frames[-1] >= target
     assert (out / "eval.json").exists()
     assert not [p for p in os.listdir(out) if p.endswith(".tmp")]
-
-
-def rows_logged(out) -> int:
-    return len(read_metrics(out)) if (out / "metrics.csv").exists() else 0
 
 
 def test_sighup_stops_a_run_unless_the_process_ignores_it():
@@ -336,9 +342,7 @@ def test_a_hangup_saves_a_checkpoint_though_the_tee_it_wrote_to_is_gone(tmp_path
         command, stdout=into_tee, stderr=into_tee, start_new_session=True, preexec_fn=default_sighup
     )
     os.close(into_tee)
-    deadline = time.monotonic() + 120
-    while rows_logged(out) < 3 and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_rows(out, 3)
     os.close(tee)  # the tee is gone: writing into the pipe fails from now on
     process.send_signal(signal.SIGHUP)
     assert process.wait(timeout=120) == 0
@@ -356,13 +360,10 @@ def test_a_run_under_nohup_goes_on_after_a_hangup(tmp_path):
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),  # what nohup does
     )
-    deadline = time.monotonic() + 120
-    while rows_logged(out) < 2 and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_rows(out, 2)
     process.send_signal(signal.SIGHUP)
     rows = rows_logged(out)
-    while rows_logged(out) < rows + 3 and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_rows(out, rows + 3)
     assert process.poll() is None and rows_logged(out) >= rows + 3  # still training
     process.send_signal(signal.SIGINT)
     output, _ = process.communicate(timeout=120)

@@ -12,7 +12,7 @@ import pytest
 import torch
 from conftest import default_sighup
 from tensordict.nn import TensorDictSequential
-from test_train import TINY, read_metrics, run_cli
+from test_train import TINY, read_metrics, run_cli, wait_for_rows
 from torch import nn
 
 from activeperc_env import EnvConfig
@@ -120,9 +120,7 @@ def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_chec
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
     try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and len(read_metrics(out) if (out / "metrics.csv").exists() else []) < 3:
-            time.sleep(0.2)
+        wait_for_rows(out, 3)
         (worker, *_) = worker_pids(process.pid)
         os.kill(worker, signal.SIGKILL)
         _, err = process.communicate(timeout=120)
@@ -170,11 +168,7 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
         start_new_session=True,
         preexec_fn=default_sighup,
     )
-    deadline = time.monotonic() + 240
-    rows = []
-    while time.monotonic() < deadline and len(rows) < 12:  # the switch to obstacles comes after 10 rows
-        time.sleep(0.5)
-        rows = read_metrics(out) if (out / "metrics.csv").exists() else []
+    wait_for_rows(out, 12, timeout=240)  # the switch to obstacles comes after 10 rows
     os.killpg(process.pid, stop)
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 0, output
