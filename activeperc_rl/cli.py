@@ -21,6 +21,7 @@ from activeperc_env import EnvConfig
 from activeperc_env.config import LOOKER_REWARDS
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml
+from activeperc_rl.signals import stop_raises_interrupt
 from activeperc_rl.workers import WorkerError
 
 CHOICES = {
@@ -106,17 +107,19 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     out = args.out
     try:
-        config = config_from_args(args)
-        out = out or str(Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
-        print(f"activeperc-train: {config.method} for {config.frames} frames -> {out}", flush=True)
-        train(config, out, resume=args.resume, progress=not args.no_progress)
+        # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
+        with stop_raises_interrupt():
+            config = config_from_args(args)
+            out = out or str(Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
+            print(f"activeperc-train: {config.method} for {config.frames} frames -> {out}", flush=True)
+            train(config, out, resume=args.resume, progress=not args.no_progress)
     except ValueError as error:
         print(f"activeperc-train: error: {error}", file=sys.stderr)
         return 2
     except (WorkerError, OSError) as error:  # a collector process died; the disk is full, read-only, ...
         print(f"activeperc-train: error: {error}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # a second Ctrl-C, or one while the run starts or evaluates
+    except KeyboardInterrupt:  # a second stop signal, or one while the run starts or evaluates
         saved = out is not None and (Path(out) / CHECKPOINT).is_file()
         hint = f"; its checkpoint is kept: continue with --resume --out {out}" if saved else ""
         print(f"\nactiveperc-train: interrupted{hint}", file=sys.stderr)

@@ -25,6 +25,7 @@ from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy
+from activeperc_rl.signals import stop_raises_interrupt
 
 MAX_ROOMS = 16
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -149,14 +150,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     try:
-        device = resolve_device(args.device)
-        config, mover_policy, looker = load_policy(args.run, device)
-        if args.random:
-            mover_policy, looker = None, None
-        result = evaluate(config, mover_policy, looker, args.episodes, args.seed, device, args.video)
+        with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
+            device = resolve_device(args.device)
+            config, mover_policy, looker = load_policy(args.run, device)
+            if args.random:
+                mover_policy, looker = None, None
+            result = evaluate(config, mover_policy, looker, args.episodes, args.seed, device, args.video)
     except ValueError as error:
         print(f"activeperc-eval: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM, SIGHUP: no result, and no video or a half-written one
+        unwritten = f"; {args.video!r} not written" if args.video else ""
+        print(f"\nactiveperc-eval: interrupted{unwritten}", file=sys.stderr)
+        return 130
     result = {"policy": "random" if args.random else config.method, **result}
     if args.json:
         print(json.dumps(result))

@@ -15,12 +15,15 @@ from __future__ import annotations
 import os
 import signal
 import stat
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 
 def stop_signals() -> list[signal.Signals]:
     """SIGINT, SIGTERM and, unless this process ignores it, SIGHUP."""
     numbers = [signal.SIGINT, signal.SIGTERM]
-    if signal.getsignal(signal.SIGHUP) is signal.SIG_DFL:
+    if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
         numbers.append(signal.SIGHUP)
     return numbers
 
@@ -47,3 +50,27 @@ def _is_tty_or_pipe(fd: int) -> bool:
         return os.isatty(fd) or stat.S_ISFIFO(os.fstat(fd).st_mode)
     except OSError:
         return False
+
+
+@contextmanager
+def stop_raises_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM and SIGHUP (when :func:`stop_signals` holds it) raise ``KeyboardInterrupt`` as
+    Ctrl-C does, so that the caller's cleanup runs (temporary files removed, child processes stopped); after a
+    SIGHUP what would go to the terminal goes to ``/dev/null``. Off the main thread (where no handler can be
+    set) the block runs with the signals as they are. The previous handlers are back when the block ends."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    terminal = Terminal()
+
+    def handler(signum, frame):
+        if signum == signal.SIGHUP:
+            terminal.hung_up()
+        raise KeyboardInterrupt
+
+    previous = {number: signal.signal(number, handler) for number in stop_signals() if number != signal.SIGINT}
+    try:
+        yield
+    finally:
+        for number, action in previous.items():
+            signal.signal(number, action)

@@ -399,6 +399,47 @@ def test_eval_cli(tmp_path, capsys):
     assert evaluate.main([str(out), "--episodes", "2", "--device", "auto", "--json"]) == 0
 
 
+def test_sigterm_in_the_final_evaluation_stops_like_ctrl_c(tmp_path, capsys, monkeypatch):
+    """Outside the training loop (start, final evaluation) SIGTERM aborts as Ctrl-C does: exit 130, one line
+    that says how to resume from the kept checkpoint, no ``eval.json``; the handler it replaced is put back."""
+
+    def killed(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(10)
+        raise AssertionError("SIGTERM did not stop the evaluation")
+
+    monkeypatch.setattr(train_module, "evaluate", killed)
+    before = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "run"
+    assert cli.main([*TINY, "--out", str(out), "--method", "fixed_forward", "--frames", "64"]) == 130
+    assert "interrupted; its checkpoint is kept: continue with --resume" in capsys.readouterr().err
+    assert load_checkpoint(out / "checkpoint.pt")["frames"] >= 64 and not (out / "eval.json").exists()
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_eval_stops_like_ctrl_c_on_sigterm_and_leaves_no_half_written_video(tmp_path, capsys, monkeypatch):
+    """A kill while ``activeperc-eval`` writes its video: exit 130 with a message, neither the video nor its
+    temporary file left behind, and the handler it replaced put back."""
+    import imageio.v2
+
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    capsys.readouterr()
+
+    def killed_while_writing(path, frames, **kwargs):
+        Path(path).write_bytes(b"the first half of a video")
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(10)
+        raise AssertionError("SIGTERM did not stop the evaluation")
+
+    monkeypatch.setattr(imageio.v2, "mimwrite", killed_while_writing)
+    before = signal.getsignal(signal.SIGTERM)
+    videos = tmp_path / "videos"
+    assert evaluate.main([str(out), "--episodes", "2", "--video", str(videos / "episode.mp4")]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert list(videos.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
 def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
     garbage, foreign, empty = tmp_path / "garbage.pt", tmp_path / "foreign.pt", tmp_path / "empty_run"
     garbage.write_bytes(b"not a checkpoint at all")

@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import csv
 import fcntl
-import functools
 import json
 import os
 import signal
@@ -51,7 +50,7 @@ from activeperc_env.core import usable_cpus
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS
 from activeperc_rl.rundir import run_files
-from activeperc_rl.signals import Terminal, stop_signals
+from activeperc_rl.signals import stop_raises_interrupt
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
@@ -347,21 +346,8 @@ def main(argv: list[str] | None = None) -> int:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             parser.error(f"another sweep.py is running on {str(args.runs)!r}; wait for it or stop it first")
-        # a kill or a closing terminal stops the runs as Ctrl-C does (which raises KeyboardInterrupt already)
-        stop = functools.partial(_terminate, Terminal())
-        previous = {number: signal.signal(number, stop) for number in stop_signals() if number != signal.SIGINT}
-        try:
+        with stop_raises_interrupt():  # a kill or a closing terminal stops the runs as Ctrl-C does
             return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
-        finally:
-            for number, action in previous.items():
-                signal.signal(number, action)
-
-
-def _terminate(terminal: Terminal, signum, frame):
-    """Stop the sweep as Ctrl-C does; after a SIGHUP, with what it prints going to ``/dev/null``."""
-    if signum == signal.SIGHUP:
-        terminal.hung_up()
-    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":
