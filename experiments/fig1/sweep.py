@@ -21,7 +21,7 @@ learner use that group only. Each run uses the GPU when one is present (``device
 
 Examples (from the repository root)::
 
-    python experiments/fig1/sweep.py --frames 300000 --seeds 0 1 2        # the committed CPU pilot's runs
+    python experiments/fig1/sweep.py --frames 300000 --seeds 0 1 2 3 4    # the committed CPU pilot's runs
     python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2
     python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 -- --num-envs 32
     python experiments/fig1/sweep.py --ablations --frames 300000 --seeds 0 1 2
