@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
+from tqdm import tqdm
 
 from activeperc_env.config import is_int
 from activeperc_env.render import side_by_side
@@ -39,6 +40,7 @@ def evaluate(
     seed: int = 0,
     device="cpu",
     video: str | Path | None = None,
+    progress: bool = False,
 ) -> dict:
     """Play ``episodes`` held-out episodes and summarise them.
 
@@ -51,6 +53,7 @@ def evaluate(
         seed: seed of the layouts and of the policies' sampling.
         device: where the policies run.
         video: write room 0's first episode (first-person view beside the bird's-eye map) here.
+        progress: show a progress bar of the finished episodes on stderr while it runs (gone when it ends).
 
     Returns:
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
@@ -68,6 +71,7 @@ def evaluate(
     returns, lengths = [[] for _ in range(rooms)], [[] for _ in range(rooms)]
     frames = []
     env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", **dataclasses.asdict(config.env))
+    bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
     try:
         with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
             torch.manual_seed(seed)
@@ -86,9 +90,11 @@ def evaluate(
                     if len(returns[i]) < quota[i]:
                         returns[i].append(float(reward[i]))
                         lengths[i].append(int(steps[i]))
+                        bar.update()
                     steps[i] = 0
                 td = following
     finally:
+        bar.close()
         env.close()
     if video is not None:
         _write_video(video, frames, fps=config.env.control_hz)
@@ -155,7 +161,9 @@ def main(argv: list[str] | None = None) -> int:
             config, mover_policy, looker = load_policy(args.run, device)
             if args.random:
                 mover_policy, looker = None, None
-            result = evaluate(config, mover_policy, looker, args.episodes, args.seed, device, args.video)
+            result = evaluate(
+                config, mover_policy, looker, args.episodes, args.seed, device, args.video, progress=sys.stderr.isatty()
+            )
     except ValueError as error:
         print(f"activeperc-eval: error: {error}", file=sys.stderr)
         return 2

@@ -171,9 +171,10 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         return result
     if config.eval_episodes:
         mover_policy, looker = method.policy()
+        held_out = dict(episodes=config.eval_episodes, seed=config.seed, device=device, progress=progress)
         result["eval"] = {
-            "learned": evaluate(config, mover_policy, looker, config.eval_episodes, config.seed, device),
-            "random": evaluate(config, None, None, config.eval_episodes, config.seed, device),
+            "learned": evaluate(config, mover_policy, looker, **held_out),
+            "random": evaluate(config, None, None, **held_out),
         }
         _write_json(out / EVAL, result["eval"] | {"frames": frames, "eval_seed": config.seed})
         for name, values in result["eval"].items():

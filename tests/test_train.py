@@ -454,11 +454,13 @@ def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
         assert named in capsys.readouterr().err
 
 
-def test_eval_is_reproducible_and_held_out(tmp_path):
+def test_eval_is_reproducible_and_held_out(tmp_path, capsys):
     config = TrainConfig(env={"max_cycles": 10})
     a = evaluate.evaluate(config, episodes=6, seed=4)
-    b = evaluate.evaluate(config, episodes=6, seed=4)
+    assert capsys.readouterr().err == ""
+    b = evaluate.evaluate(config, episodes=6, seed=4, progress=True)  # the bar changes nothing but stderr
     assert a == b and a["episodes"] == 6 and a["mean_length"] <= 10
+    assert "evaluating" in capsys.readouterr().err
     from activeperc_rl.envs import make_env
 
     train_env, eval_env = make_env(3, seed=0), make_env(3, seed=0, split="eval")
