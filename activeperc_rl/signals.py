@@ -16,8 +16,8 @@ import os
 import signal
 import stat
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 
 
 def stop_signals() -> list[signal.Signals]:
@@ -53,11 +53,11 @@ def _is_tty_or_pipe(fd: int) -> bool:
 
 
 @contextmanager
-def stop_raises_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP (when :func:`stop_signals` holds it) raise ``KeyboardInterrupt`` as
-    Ctrl-C does, so that the caller's cleanup runs (temporary files removed, child processes stopped); after a
-    SIGHUP what would go to the terminal goes to ``/dev/null``. Off the main thread (where no handler can be
-    set) the block runs with the signals as they are. The previous handlers are back when the block ends."""
+def on_stop_signals(action: Callable[[int], None], sigint: bool = True) -> Iterator[None]:
+    """Within the block, each stop signal (:func:`stop_signals`, SIGINT only when ``sigint``) calls
+    ``action(signum)``, after a SIGHUP has pointed what went to the terminal at ``/dev/null``. Off the main thread
+    (where no handler can be set) the block runs with the signals as they are. The previous handlers are back
+    when the block ends."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -66,11 +66,23 @@ def stop_raises_interrupt() -> Iterator[None]:
     def handler(signum, frame):
         if signum == signal.SIGHUP:
             terminal.hung_up()
-        raise KeyboardInterrupt
+        action(signum)
 
-    previous = {number: signal.signal(number, handler) for number in stop_signals() if number != signal.SIGINT}
+    numbers = [number for number in stop_signals() if sigint or number != signal.SIGINT]
+    previous = {number: signal.signal(number, handler) for number in numbers}
     try:
         yield
     finally:
-        for number, action in previous.items():
-            signal.signal(number, action)
+        for number, handling in previous.items():
+            signal.signal(number, handling)
+
+
+def stop_raises_interrupt() -> AbstractContextManager[None]:
+    """Within the block, SIGTERM and SIGHUP (when :func:`stop_signals` holds it) raise ``KeyboardInterrupt`` as
+    Ctrl-C does, so that the caller's cleanup runs (temporary files removed, child processes stopped); after a
+    SIGHUP what would go to the terminal goes to ``/dev/null`` (see :func:`on_stop_signals`)."""
+    return on_stop_signals(_raise_interrupt, sigint=False)
+
+
+def _raise_interrupt(signum: int) -> None:
+    raise KeyboardInterrupt

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import math
 import signal
-import threading
 import time
 from collections import deque
 from contextlib import ExitStack, closing, contextmanager
@@ -41,7 +40,7 @@ from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_ya
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import make_method
 from activeperc_rl.rundir import check_fresh, claim_run_dir
-from activeperc_rl.signals import Terminal, stop_signals
+from activeperc_rl.signals import on_stop_signals
 from activeperc_rl.workers import WorkerError
 
 
@@ -199,26 +198,16 @@ def _interruptible():
     flag the loop polls; a second one interrupts at once. After a SIGHUP, what would go to the terminal goes to
     ``/dev/null``."""
     flag = {"set": False}
-    if threading.current_thread() is not threading.main_thread():
-        yield lambda: False
-        return
-    terminal = Terminal()
 
-    def handler(signum, frame):
-        if signum == signal.SIGHUP:
-            terminal.hung_up()
+    def stop(signum: int) -> None:
         if flag["set"]:
             raise KeyboardInterrupt
         flag["set"] = True
         name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
         print(f"\n{name}: finishing this iteration, then saving a checkpoint ({name} again to abort)", flush=True)
 
-    previous = {number: signal.signal(number, handler) for number in stop_signals()}
-    try:
+    with on_stop_signals(stop):
         yield lambda: flag["set"]
-    finally:
-        for number, action in previous.items():
-            signal.signal(number, action)
 
 
 def _write_json(path: Path, values: dict) -> None:
