@@ -7,7 +7,7 @@ import math
 import numbers
 from dataclasses import dataclass
 
-from activeperc_env.names import OCCLUDER_BODIES
+from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP
 
 LOOKER_REWARDS = ("shared", "none")
 
@@ -35,7 +35,8 @@ class EnvConfig:
     pan_step: float = 30.0
     """Degrees the camera turns for one 'pan left' or 'pan right' action."""
     control_hz: float = 5.0
-    """Mover decisions per simulated second; each move drives the wheels for 1/control_hz s."""
+    """Mover decisions per simulated second; each move drives the wheels for 1/control_hz s, a whole number of the
+    scene's 5 ms physics steps (200 / k Hz for k = 1 to 400: 200, 100, 50, 40, 25, 20, 10, 5, 4, 2, ...)."""
     forward_speed: float = 0.75
     """Wheel rim speed of the 'forward' action, in m/s."""
     turn_speed: float = 90.0
@@ -54,7 +55,9 @@ class EnvConfig:
             "max_cycles": is_int(self.max_cycles) and self.max_cycles >= 1,
             "pan_range": is_number(self.pan_range) and 0.0 <= self.pan_range <= 180.0,
             "pan_step": is_number(self.pan_step) and 0.0 < self.pan_step <= 180.0,
-            "control_hz": is_number(self.control_hz) and 0.5 <= self.control_hz <= 200.0,
+            "control_hz": is_number(self.control_hz)
+            and 0.5 <= self.control_hz <= 200.0
+            and _whole_steps(self.control_hz),
             "forward_speed": is_number(self.forward_speed) and 0.0 < self.forward_speed <= 3.0,
             "turn_speed": is_number(self.turn_speed) and 0.0 < self.turn_speed <= 720.0,
             "looker_reward": isinstance(self.looker_reward, str) and self.looker_reward in LOOKER_REWARDS,
@@ -68,7 +71,8 @@ class EnvConfig:
             "max_cycles": "an int >= 1",
             "pan_range": "degrees in [0, 180]",
             "pan_step": "degrees in (0, 180]",
-            "control_hz": "a rate in [0.5, 200] Hz",
+            "control_hz": f"a rate in [0.5, 200] Hz whose period is a whole number of {PHYSICS_TIMESTEP * 1000:g} ms "
+            "physics steps (200 / k Hz, e.g. 200, 100, 50, 40, 25, 20, 10, 5, 4, 2)",
             "forward_speed": "m/s in (0, 3]",
             "turn_speed": "degrees per second in (0, 720]",
             "looker_reward": f"one of {LOOKER_REWARDS}",
@@ -93,6 +97,16 @@ class EnvConfig:
         """MuJoCo's vertical field of view (degrees) for the horizontal ``fov`` and the aspect."""
         half = math.radians(self.fov) / 2
         return math.degrees(2 * math.atan(math.tan(half) * self.height / self.width))
+
+
+def physics_steps(control_hz: float) -> int:
+    """MuJoCo steps in one control period of ``control_hz`` (the nearest whole number)."""
+    return max(1, round(1.0 / (control_hz * PHYSICS_TIMESTEP)))
+
+
+def _whole_steps(control_hz: float) -> bool:
+    """Whether one control period of ``control_hz`` is a whole number of physics steps (to 0.1 % of a step)."""
+    return abs(1.0 / (control_hz * PHYSICS_TIMESTEP) - physics_steps(control_hz)) < 1e-3
 
 
 def is_int(value) -> bool:

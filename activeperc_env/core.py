@@ -20,7 +20,7 @@ import mujoco.batch
 import numpy as np
 
 from activeperc_env import names
-from activeperc_env.config import EnvConfig, is_int
+from activeperc_env.config import EnvConfig, is_int, physics_steps
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
 
@@ -74,7 +74,7 @@ class Simulator:
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs = int(num_envs)
         self.model = load_model(self.config)
-        self.substeps = max(1, round(1.0 / (self.config.control_hz * self.model.opt.timestep)))
+        self.substeps = physics_steps(self.config.control_hz)
         nthread = min(nthread or usable_cpus(), num_envs)
         self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
         self._qpos = self._batch.bind("qpos")

@@ -24,7 +24,8 @@ ROBOT_GROUP = 2
 # geom group that no view draws (MuJoCo shows groups 0-2 by default): the occluders a config leaves parked
 HIDDEN_GROUP = 5
 
-# dimensions that must agree with the XML
+# values that must agree with the XML
+PHYSICS_TIMESTEP = 0.005  # seconds of one MuJoCo step (<option timestep>)
 WHEEL_RADIUS = 0.05
 WHEEL_TRACK = 0.26  # distance between the wheels' contact points
 ROBOT_RADIUS = 0.18  # a circle around the chassis, for layout and success checks

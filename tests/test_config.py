@@ -22,6 +22,8 @@ from activeperc_env.config import EnvConfig
         ("pan_range", 190),
         ("pan_step", 0),
         ("control_hz", 0),
+        ("control_hz", 30),  # 6.67 physics steps of 5 ms
+        ("control_hz", 150),
         ("looker_reward", "mine"),
         ("fov", "60"),
         ("fov", None),
@@ -33,6 +35,11 @@ from activeperc_env.config import EnvConfig
 def test_invalid_value_names_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         EnvConfig(**{field: value})
+
+
+@pytest.mark.parametrize("hz, steps", [(200, 1), (200 / 3, 3), (66.67, 3), (5, 40), (4.0, 50), (0.5, 400)])
+def test_control_period_is_whole_physics_steps(hz, steps):
+    assert activeperc_env.Simulator(EnvConfig(control_hz=hz)).substeps == steps
 
 
 def test_unknown_option_is_named():

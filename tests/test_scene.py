@@ -26,6 +26,10 @@ def test_every_named_element_exists():
         assert mujoco.mj_name2id(model, obj, name) >= 0, name
 
 
+def test_physics_timestep_agrees_with_the_xml():
+    assert load_model(EnvConfig()).opt.timestep == names.PHYSICS_TIMESTEP
+
+
 def test_fov_is_converted_to_vertical():
     config = EnvConfig(fov=100, width=80, height=60)
     model = load_model(config)
