@@ -28,6 +28,7 @@ MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
+MAX_SEED = 2**63 - 1  # the largest seed a room takes (seeds travel as int64 through the batched APIs)
 
 
 @dataclass
@@ -102,14 +103,14 @@ class Simulator:
 
         Args:
             ids: indices of the rooms to reset.
-            seeds: one seed per reset room (an int is broadcast). A room given a seed restarts
-                its random stream from it; a room given ``None`` draws its layout from its stream.
+            seeds: ``None``, or one seed per reset room (an int is broadcast), each an int in
+                [0, ``MAX_SEED``]: a room given a seed restarts its random stream from it. Without seeds
+                the rooms draw their layouts from their streams.
         """
         ids = self._as_ids(ids)
         if seeds is not None:
-            seeds = np.broadcast_to(np.asarray(seeds, dtype=np.int64), ids.shape)
-            for i, seed in zip(ids, seeds, strict=True):
-                self._rngs[i] = np.random.default_rng(int(seed))
+            for i, seed in zip(ids, _check_seeds(seeds, ids), strict=True):
+                self._rngs[i] = np.random.default_rng(seed)
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles
         for i in ids:
@@ -311,6 +312,18 @@ class _Ids:
         self.wheels = [actuator(names.LEFT_WHEEL), actuator(names.RIGHT_WHEEL)]
         self.goal = int(mocap(names.GOAL_BODY))
         self.occluders = tuple(int(mocap(b)) for b in names.OCCLUDER_BODIES)
+
+
+def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
+    """One seed per room of ``ids`` (an int is broadcast), each an int in [0, MAX_SEED]; else ``ValueError``."""
+    if is_int(seeds):
+        seeds = [seeds] * len(ids)
+    if not isinstance(seeds, (list, tuple, np.ndarray)) or len(seeds) != len(ids):
+        raise ValueError(f"seeds={seeds!r} invalid: expected an int or {len(ids)} ints, one per reset room")
+    for seed in seeds:
+        if not (is_int(seed) and 0 <= seed <= MAX_SEED):
+            raise ValueError(f"seed {seed!r} is invalid: expected an int in [0, 2**63 - 1]")
+    return [int(seed) for seed in seeds]
 
 
 def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:

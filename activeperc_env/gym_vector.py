@@ -15,10 +15,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from activeperc_env.config import EnvConfig, is_int
-from activeperc_env.core import HOLD, Simulator
+from activeperc_env.core import HOLD, MAX_SEED, Simulator
 from activeperc_env.spaces import mover_space, observation_space
-
-MAX_SEED = 2**63 - 1  # seeds are kept as int64
 
 
 class _SingleAgentVectorEnv(VectorEnv):

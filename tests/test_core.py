@@ -1,5 +1,7 @@
 """The batched core: one episode through every API, the paper's cycle, reward and reset."""
 
+import re
+
 import gymnasium
 import numpy as np
 import pytest
@@ -7,6 +9,7 @@ from conftest import assert_same_view, drive_to_goal
 
 import activeperc_env
 from activeperc_env import LOOKER, MOVER, EnvConfig, Simulator
+from activeperc_env.config import is_int
 
 SEED = 7
 CYCLES = 25
@@ -166,6 +169,21 @@ def test_bad_num_envs_and_ids_are_named():
     sim = Simulator(num_envs=2)
     with pytest.raises(ValueError, match=r"\[5\]"):
         sim.reset(ids=[5])
+
+
+@pytest.mark.parametrize("seed", [1.7, True, -1, 2**63, "0"])
+def test_bad_seeds_are_named_by_every_api(seed):
+    match = re.escape(repr(seed))
+    with pytest.raises(ValueError, match=match):
+        Simulator().reset(seeds=[seed])
+    for env in (activeperc_env.env(), activeperc_env.parallel_env()):
+        with pytest.raises(ValueError, match=match):
+            env.reset(seed=seed)
+    if is_int(seed) and seed >= 0:  # Gymnasium refuses the others itself
+        with pytest.raises(ValueError, match=match):
+            gymnasium.make("activeperc/Joint-v0").reset(seed=seed)
+    with pytest.raises(ValueError, match=r"2 ints, one per reset room"):
+        Simulator(num_envs=2).reset(seeds=[0, 1, 2])
 
 
 def test_occluders_in_use_and_parked():
