@@ -8,25 +8,20 @@ import numpy as np
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import HOLD, Simulator
 from activeperc_env.spaces import check_action, mover_space, observation_space
-from activeperc_env.viewer import HumanViewer
+from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
 
 
-class _SingleAgentEnv(gym.Env):
+class _SingleAgentEnv(OneRoomRendering, gym.Env):
     """One agent over a one-room ``Simulator``; subclasses map its action to a move and a look."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": EnvConfig.control_hz}  # each env: its own
+    metadata = {"render_modes": RENDER_MODES, "render_fps": EnvConfig.control_hz}  # each env: its own
 
     def __init__(self, render_mode: str | None = None, **config):
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(
-                f"render_mode={render_mode!r} is invalid: expected None or one of {self.metadata['render_modes']}"
-            )
-        self.render_mode = render_mode
+        self._setup_rendering(render_mode)
         self.config = EnvConfig.from_kwargs(**config)
         self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
         self.observation_space = observation_space(self.config)
-        self._viewer = HumanViewer() if render_mode == "human" else None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``seed`` fixes the layout, as in the PettingZoo envs."""
@@ -50,20 +45,6 @@ class _SingleAgentEnv(gym.Env):
             bool(result.truncated[0]),
             {"cycle": int(self.sim.cycle[0])},
         )
-
-    def render(self):
-        """``rgb_array``: the bird's-eye map; ``human``: MuJoCo's viewer."""
-        if self.render_mode == "rgb_array":
-            return self.sim.render_map(0)
-        if self.render_mode == "human":
-            self._viewer.show(self.sim)
-        return None
-
-    def close(self):
-        """Release the renderer and close the viewer."""
-        if self._viewer is not None:
-            self._viewer.close()
-        self.sim.close()
 
     def _observe(self) -> dict:
         return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}

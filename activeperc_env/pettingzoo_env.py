@@ -15,21 +15,18 @@ from pettingzoo.utils import wrappers
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import Simulator
 from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space, state_space
-from activeperc_env.viewer import HumanViewer
+from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
 
 MOVER, LOOKER = "mover_0", "looker_0"
-RENDER_MODES = ["human", "rgb_array"]
 
 
-class _Adapter:
+class _Adapter(OneRoomRendering):
     """What both PettingZoo envs share: spaces, seeding, rendering over one ``Simulator``."""
 
     metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v0", "is_parallelizable": True}
 
     def _setup(self, render_mode: str | None, config: dict) -> None:
-        if render_mode not in (None, *RENDER_MODES):
-            raise ValueError(f"render_mode={render_mode!r} is invalid: expected None or one of {RENDER_MODES}")
-        self.render_mode = render_mode
+        self._setup_rendering(render_mode)
         self.config = EnvConfig.from_kwargs(**config)
         self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
@@ -38,7 +35,6 @@ class _Adapter:
         self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
         self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
         self.state_space = state_space(self.config)
-        self._viewer = HumanViewer() if render_mode == "human" else None
 
     def observation_space(self, agent):
         """The observation space of ``agent`` (the same object on every call)."""
@@ -52,24 +48,6 @@ class _Adapter:
         """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
         heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
         return self.sim.state()[0]
-
-    def render(self):
-        """``rgb_array``: the bird's-eye map (240x320x3); ``human``: MuJoCo's viewer."""
-        if self.render_mode is None:
-            import gymnasium
-
-            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
-            return None
-        if self.render_mode == "rgb_array":
-            return self.sim.render_map(0)
-        self._viewer.show(self.sim)
-        return None
-
-    def close(self):
-        """Release the renderer and close the viewer."""
-        if self._viewer is not None:
-            self._viewer.close()
-        self.sim.close()
 
     def _observe_now(self) -> dict:
         return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}

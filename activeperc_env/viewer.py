@@ -1,27 +1,62 @@
-"""``render_mode="human"``: MuJoCo's interactive viewer where a display exists."""
+"""Rendering of the one-room adapters: the bird's-eye map, and MuJoCo's interactive viewer where a display exists."""
 
 from __future__ import annotations
 
 import os
 import warnings
 
+import gymnasium
+
 from activeperc_env.core import Simulator
+
+RENDER_MODES = ["human", "rgb_array"]
+
+
+class OneRoomRendering:
+    """``render()`` and ``close()`` of the PettingZoo and Gymnasium envs, over room 0 of ``self.sim``."""
+
+    sim: Simulator
+
+    def _setup_rendering(self, render_mode: str | None) -> None:
+        """Check and keep ``render_mode``; a ``'human'`` env gets its viewer (opened at the first render)."""
+        if render_mode not in (None, *RENDER_MODES):
+            raise ValueError(f"render_mode={render_mode!r} is invalid: expected None or one of {RENDER_MODES}")
+        self.render_mode = render_mode
+        self._viewer = HumanViewer() if render_mode == "human" else None
+
+    def render(self):
+        """``rgb_array``: the bird's-eye map (240x320x3 uint8); ``human``: MuJoCo's viewer (``None``)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if self.render_mode == "rgb_array":
+            return self.sim.render_map(0)
+        self._viewer.show(self.sim)
+        return None
+
+    def close(self):
+        """Release the renderer and close the viewer."""
+        if self._viewer is not None:
+            self._viewer.close()
+        self.sim.close()
 
 
 class HumanViewer:
-    """Shows room 0 of a simulator in MuJoCo's passive viewer; headless, warns once and shows nothing."""
+    """Shows room 0 of a simulator in MuJoCo's passive viewer; without a display it warns once and shows nothing."""
 
     def __init__(self):
         self._handle = None
         self._data = None
-        self._warned = False
+        self._headless = None  # why no window can open, once the first show() has looked
 
     def show(self, sim: Simulator) -> None:
         """Draw the current state (opens the window on first use)."""
-        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-            if not self._warned:
-                warnings.warn("render_mode='human' needs a display; none found, so nothing is shown", stacklevel=3)
-                self._warned = True
+        if self._headless is None:
+            self._headless = _missing_display() or ""
+            if self._headless:
+                message = f"render_mode='human' needs a display; {self._headless}, so nothing is shown"
+                warnings.warn(message, stacklevel=3)
+        if self._headless:
             return
         import mujoco.viewer
 
@@ -39,3 +74,17 @@ class HumanViewer:
         if self._handle is not None:
             self._handle.close()
             self._handle = None
+
+
+def _missing_display() -> str | None:
+    """Why no window can open here (no display named, or the named one cannot be reached), or ``None``."""
+    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    if not display:
+        return "none found (DISPLAY and WAYLAND_DISPLAY are unset)"
+    import glfw  # what MuJoCo's viewer opens its window with; its own failure would end the process
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", glfw.GLFWError)
+        if not glfw.init():
+            return f"display {display!r} could not be opened"
+    return None

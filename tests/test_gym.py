@@ -32,10 +32,14 @@ def test_fixed_forward_never_pans():
     assert env.unwrapped.config.fov == 100
 
 
-def test_rgb_array_render_is_the_map():
+def test_rgb_array_render_is_the_map_and_no_render_mode_warns():
     env = gymnasium.make("activeperc/Joint-v0", render_mode="rgb_array")
     env.reset(seed=0)
     assert env.render().shape == (240, 320, 3)
+    plain = gymnasium.make("activeperc/Joint-v0")
+    plain.reset(seed=0)
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert plain.render() is None
 
 
 def test_info_counts_cycles_and_render_fps_is_the_control_rate():

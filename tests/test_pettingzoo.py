@@ -102,20 +102,26 @@ def test_unknown_agent_is_named():
         env.observation_space("cat_0")
 
 
-def test_rgb_array_map_and_headless_human(monkeypatch):
+@pytest.mark.parametrize("display, why", [(None, "none found"), (":99", "display ':99' could not be opened")])
+def test_rgb_array_map_and_headless_human(monkeypatch, display, why):
+    """Without a display, or with one that cannot be reached (a stale DISPLAY), 'human' warns once and goes on."""
     env = activeperc_env.env(render_mode="rgb_array")
     env.reset(seed=0)
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
-    monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    if display is None:
+        monkeypatch.delenv("DISPLAY", raising=False)
+    else:
+        monkeypatch.setenv("DISPLAY", display)
     human = activeperc_env.env(render_mode="human")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         human.reset(seed=0)
         assert human.render() is None
         human.step(0)
-    assert sum("display" in str(w.message) for w in caught) == 1
+    messages = [str(w.message) for w in caught if "needs a display" in str(w.message)]
+    assert len(messages) == 1 and why in messages[0]
 
 
 def test_observations_are_the_callers_own():
