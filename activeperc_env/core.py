@@ -36,7 +36,7 @@ class MoveResult:
     """What one move did to each simulation of the call, as (n,) arrays."""
 
     reward: np.ndarray
-    """The mover's reward ``r(s, u_m)``: ``1 - 0.2 t / T`` on success, else 0 (float32)."""
+    """The mover's reward ``r(s, u_m)``: ``1 - 0.2 t / T`` on success, else 0 (float64)."""
     looker_reward: np.ndarray
     """The looker's reward for the same cycle: the mover's (``looker_reward='shared'``) or 0 (``'none'``)."""
     terminated: np.ndarray
@@ -156,7 +156,7 @@ class Simulator:
         goal = self._mocap_pos[ids][:, self._ids.goal, :2]
         success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
         frac = self.cycle[ids] / self.config.max_cycles
-        reward = np.where(success, 1.0 - 0.2 * frac, 0.0).astype(np.float32)
+        reward = np.where(success, 1.0 - 0.2 * frac, 0.0)
         truncated = ~success & (self.cycle[ids] >= self.config.max_cycles)
         self.done[ids] = success | truncated
         looker_reward = reward.copy() if self.config.looker_reward == "shared" else np.zeros_like(reward)

@@ -275,8 +275,8 @@ class ActivePerceptionEnv(EnvBase):
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER))
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
         out.set((MOVER, "observation"), self._observe())
-        out.set((MOVER, "reward"), torch.from_numpy(result.reward).reshape(n, 1).to(self.device))
-        out.set((LOOKER, "reward"), torch.from_numpy(result.looker_reward).reshape(n, 1).to(self.device))
+        for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
+            out.set((agent, "reward"), torch.from_numpy(reward).reshape(n, 1).to(self.device, torch.float32))
         terminated = torch.from_numpy(result.terminated).reshape(n, 1).to(self.device)
         truncated = torch.from_numpy(result.truncated).reshape(n, 1).to(self.device)
         out.set("terminated", terminated)
