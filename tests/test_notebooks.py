@@ -3,7 +3,7 @@
 The notebooks run in a kernel of *this* interpreter: a kernelspec whose argv is
 ``sys.executable -m ipykernel_launcher`` is written to a temporary folder and looked up there
 alone, so no ``python3`` kernelspec installed elsewhere (user or system Jupyter folders) can
-pick another Python. Nothing beyond ``pip install -e .[dev]`` is needed.
+pick another Python. Nothing beyond ``pip install -e .[train,dev]`` is needed.
 """
 
 from pathlib import Path
