@@ -39,6 +39,21 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+def check_writable(path: str | Path) -> None:
+    """``ValueError`` naming ``path`` when :func:`atomic_path` could not write it: a directory stands there, a file
+    stands where one of its folders should be, or the nearest existing folder is not writable."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{str(path)!r} is a directory, not a file")
+    for folder in path.parents:  # the nearest first
+        if folder.exists():
+            if not folder.is_dir():
+                raise ValueError(f"cannot write {str(path)!r}: {str(folder)!r} is a file, not a directory")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise ValueError(f"cannot write {str(path)!r}: {str(folder)!r} is not writable")
+            return
+
+
 def _umask() -> int:
     """The process's umask (reading it means setting it: it is set straight back)."""
     mask = os.umask(0o022)

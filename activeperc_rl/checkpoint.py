@@ -52,6 +52,17 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     return state
 
 
+def restore_method(method, state: dict, path: str | Path) -> None:
+    """Load the networks and optimizers of the checkpoint ``state`` (read from ``path``) into ``method``.
+
+    Raises ``ValueError`` naming the file when they do not fit the method's networks.
+    """
+    try:
+        method.load_state_dict(state["method"])
+    except ValueError as error:
+        raise ValueError(f"checkpoint {str(path)!r} is unusable: {error}") from error
+
+
 RESUMABLE = (
     "frames",
     "device",

@@ -20,7 +20,8 @@ from pathlib import Path
 from activeperc_env import EnvConfig
 from activeperc_env.config import LOOKER_REWARDS
 from activeperc_rl.checkpoint import CHECKPOINT
-from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml
+from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml, whole_number
+from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt
 from activeperc_rl.workers import WorkerError
 
@@ -52,14 +53,20 @@ def _add_fields(group, cls, skip=()) -> None:
             continue
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
         flag = "--" + f.name.replace("_", "-")
-        help_text = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
+        shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
+        help_text = f"{docs.get(f.name, '')} (default: {shown})".replace("%", "%%")
         kwargs = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_text}
         if isinstance(default, bool):
             group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
         elif isinstance(default, tuple):
-            group.add_argument(flag, type=type(default[0]), nargs="+", metavar="N", **kwargs)
+            group.add_argument(flag, type=_parser_type(default[0]), nargs="+", metavar="N", **kwargs)
         else:
-            group.add_argument(flag, type=type(default), choices=CHOICES.get(f.name), **kwargs)
+            group.add_argument(flag, type=_parser_type(default), choices=CHOICES.get(f.name), **kwargs)
+
+
+def _parser_type(default):
+    """How a flag's text becomes the field's type: ints also from whole numbers in exponent notation (2e6)."""
+    return whole_number if isinstance(default, int) else type(default)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -105,14 +112,17 @@ def main(argv: list[str] | None = None) -> int:
     from activeperc_rl.train import train
 
     args = build_parser().parse_args(argv)
-    out = args.out
+    out, named = args.out, None  # named: the default directory this command made, removed if the run never starts
     try:
         # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
         with stop_raises_interrupt():
             config = config_from_args(args)
-            out = out or str(Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
+            if out is None:
+                stem = Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
+                out = named = str(new_run_dir(stem))
             print(f"activeperc-train: {config.method} for {config.frames} frames -> {out}", flush=True)
             train(config, out, resume=args.resume, progress=not args.no_progress)
+            named = None
     except ValueError as error:
         print(f"activeperc-train: error: {error}", file=sys.stderr)
         return 2
@@ -124,6 +134,9 @@ def main(argv: list[str] | None = None) -> int:
         hint = f"; its checkpoint is kept: continue with --resume --out {out}" if saved else ""
         print(f"\nactiveperc-train: interrupted{hint}", file=sys.stderr)
         return 130
+    finally:
+        if named is not None:
+            remove_if_unused(named)
     return 0
 
 

@@ -12,6 +12,7 @@ The CLI flags of ``activeperc-train`` are generated from these fields (and from
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +21,7 @@ import yaml
 
 from activeperc_env import EnvConfig
 from activeperc_env.config import is_int, is_number, normalize_numbers
+from activeperc_env.core import MAX_SEED
 from activeperc_rl.atomic import atomic_path
 
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
@@ -139,7 +141,7 @@ class TrainConfig:
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
             "num_envs": (is_int(self.num_envs) and self.num_envs >= 1, "an int >= 1"),
             "rollout_length": (is_int(self.rollout_length) and self.rollout_length >= 2, "an int >= 2"),
-            "seed": (is_int(self.seed) and self.seed >= 0, "an int >= 0"),
+            "seed": (is_int(self.seed) and 0 <= self.seed <= MAX_SEED, "an int in [0, 2**63 - 1]"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
             "torch_threads": (is_int(self.torch_threads) and self.torch_threads >= 0, "an int >= 0"),
             "learner_threads": (is_int(self.learner_threads) and self.learner_threads >= 0, "an int >= 0"),
@@ -149,15 +151,15 @@ class TrainConfig:
             ),
             "gamma": (is_number(self.gamma) and 0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
             "gae_lambda": (is_number(self.gae_lambda) and 0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
-            "lr": (is_number(self.lr) and self.lr > 0, "a number > 0"),
-            "looker_lr": (is_number(self.looker_lr) and self.looker_lr > 0, "a number > 0"),
-            "entropy_coeff": (is_number(self.entropy_coeff) and self.entropy_coeff >= 0, "a number >= 0"),
+            "lr": (_finite(self.lr) and self.lr > 0, "a finite number > 0"),
+            "looker_lr": (_finite(self.looker_lr) and self.looker_lr > 0, "a finite number > 0"),
+            "entropy_coeff": (_finite(self.entropy_coeff) and self.entropy_coeff >= 0, "a finite number >= 0"),
             "looker_entropy_coeff": (
-                is_number(self.looker_entropy_coeff) and self.looker_entropy_coeff >= 0,
-                "a number >= 0",
+                _finite(self.looker_entropy_coeff) and self.looker_entropy_coeff >= 0,
+                "a finite number >= 0",
             ),
-            "critic_coeff": (is_number(self.critic_coeff) and self.critic_coeff > 0, "a number > 0"),
-            "max_grad_norm": (is_number(self.max_grad_norm) and self.max_grad_norm > 0, "a number > 0"),
+            "critic_coeff": (_finite(self.critic_coeff) and self.critic_coeff > 0, "a finite number > 0"),
+            "max_grad_norm": (_finite(self.max_grad_norm) and self.max_grad_norm > 0, "a finite number > 0"),
             "epsilon": (is_number(self.epsilon) and 0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
             "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
             "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
@@ -218,9 +220,12 @@ def load_yaml(path: str | Path) -> dict:
     """Read a YAML preset (a mapping); a missing file, invalid YAML or a non-mapping raises ``ValueError``.
 
     Numbers in exponent notation without a dot (``3e-5``, ``1E4``) are read as numbers, as YAML 1.2 and most
-    users read them, not as the strings of PyYAML's YAML 1.1.
+    users read them, not as the strings of PyYAML's YAML 1.1; a whole number in exponent notation (``2e6``) is
+    an int, so that it fits int options such as ``frames``.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"config file {str(path)!r} is a directory: give a YAML file")
     if not path.is_file():
         raise ValueError(f"config file {str(path)!r} does not exist")
     try:
@@ -252,10 +257,34 @@ def save_yaml(config: TrainConfig, path: str | Path) -> None:
         temporary.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
 
 
+def whole_number(text: str) -> int:
+    """An int from ``text``, also in exponent notation when its value is whole (``2e6``); else ``ValueError``."""
+    try:
+        return int(text)
+    except ValueError:
+        value = float(text)  # ValueError when it is no number at all
+        if not (math.isfinite(value) and value.is_integer()):
+            raise ValueError(f"{text!r} is not a whole number") from None
+        return int(value)
+
+
+def _finite(value) -> bool:
+    """Whether ``value`` is a real number other than infinity and NaN."""
+    return is_number(value) and math.isfinite(value)
+
+
 class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader, reading ``3e-5`` as a float."""
+    """PyYAML's safe loader, reading ``3e-5`` as a float and ``2e6`` as an int."""
+
+    def construct_yaml_float(self, node):
+        """A float, or an int when written in exponent notation with a whole value (``1e6``)."""
+        value = super().construct_yaml_float(node)
+        if "e" in str(node.value).lower() and math.isfinite(value) and value.is_integer():
+            return int(value)
+        return value
 
 
+_Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),

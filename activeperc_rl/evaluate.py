@@ -20,9 +20,10 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 from tqdm import tqdm
 
 from activeperc_env.config import is_int
+from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
-from activeperc_rl.atomic import atomic_path
-from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint
+from activeperc_rl.atomic import atomic_path, check_writable
+from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy
@@ -60,10 +61,12 @@ def evaluate(
     """
     if not is_int(episodes) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
-    if not is_int(seed) or seed < 0:
-        raise ValueError(f"seed={seed!r} is invalid: expected an int >= 0")
-    if video is not None and Path(video).suffix.lower() not in VIDEO_SUFFIXES:
-        raise ValueError(f"video file {str(video)!r} must end in one of {VIDEO_SUFFIXES} (its suffix picks the format)")
+    if not is_int(seed) or not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"seed={seed!r} is invalid: expected an int in [0, 2**63 - 1]")
+    if video is not None:
+        if Path(video).suffix.lower() not in VIDEO_SUFFIXES:
+            raise ValueError(f"video file {str(video)!r} must end in one of {VIDEO_SUFFIXES} (it picks the format)")
+        check_writable(video)  # before the episodes are played, not after
     if mover_policy is None:
         mover_policy, looker = RandomPolicy((MOVER, LOOKER)), None
     rooms = min(episodes, MAX_ROOMS)
@@ -121,7 +124,7 @@ def load_policy(path: str | Path, device="cpu"):
     state = load_checkpoint(file)
     config = TrainConfig.from_dict(state["config"])
     method = make_method(config, torch.device(device), start=False)
-    method.load_state_dict(state["method"])
+    restore_method(method, state, file)
     mover_policy, looker = method.policy()
     return config, mover_policy, looker
 
@@ -147,9 +150,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("run", help="a run directory (holding checkpoint.pt) or a checkpoint file")
     parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the held-out layouts (default 0)")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the held-out layouts and of the policies' sampling (default 0)"
+    )
     parser.add_argument("--random", action="store_true", help="evaluate uniformly random mover and looker instead")
-    parser.add_argument("--video", metavar="FILE.mp4", help="write the first episode's view and map to FILE.mp4")
+    parser.add_argument(
+        "--video", metavar="FILE.mp4", help="write the first episode's view and map to FILE.mp4 (or FILE.gif)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--device", default="cpu", choices=DEVICES, help="device of the policy (default cpu; auto: cuda when available)"
@@ -167,6 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         print(f"activeperc-eval: error: {error}", file=sys.stderr)
         return 2
+    except OSError as error:  # the disk is full, the folder went away, ...
+        print(f"activeperc-eval: error: {error}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:  # Ctrl-C, SIGTERM, SIGHUP: no result, and no video or a half-written one
         unwritten = f"; {args.video!r} not written" if args.video else ""
         print(f"\nactiveperc-eval: interrupted{unwritten}", file=sys.stderr)

@@ -206,16 +206,20 @@ class Method:
         }
 
     def load_state_dict(self, state: dict) -> None:
-        """Restore what :meth:`state_dict` returned."""
+        """Restore what :meth:`state_dict` returned; ``ValueError`` when it does not fit these networks."""
+        if not isinstance(state, dict) or not all(isinstance(state.get(k), dict) for k in ("modules", "optimizers")):
+            raise ValueError("it holds no networks and optimizers")
         missing = sorted(set(self.modules) ^ set(state["modules"]))
         if missing:
-            raise ValueError(
-                f"the checkpoint's networks {sorted(state['modules'])} do not match {sorted(self.modules)}"
-            )
-        for k, module in self.modules.items():
-            module.load_state_dict(state["modules"][k])
-        for k, optimizer in self.optimizers.items():
-            optimizer.load_state_dict(state["optimizers"][k])
+            raise ValueError(f"its networks {sorted(state['modules'])} do not match {sorted(self.modules)}")
+        try:
+            for k, module in self.modules.items():
+                module.load_state_dict(state["modules"][k])
+            for k, optimizer in self.optimizers.items():
+                optimizer.load_state_dict(state["optimizers"][k])
+        except (RuntimeError, ValueError, KeyError) as error:  # shapes or parameter groups of other networks
+            lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+            raise ValueError(f"its {k!r} does not fit the config: {' '.join(lines[:2])}") from error
 
     def close(self) -> None:
         """Shut the collectors and their environments down."""

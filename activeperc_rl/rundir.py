@@ -11,6 +11,7 @@ the lock, the process also removes the temporary files that a killed writer left
 from __future__ import annotations
 
 import fcntl
+import itertools
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -26,13 +27,25 @@ RUN_FILES = (CHECKPOINT, CONFIG, METRICS, EVAL)
 
 @contextmanager
 def claim_run_dir(out: str | Path) -> Iterator[Path]:
-    """Create ``out`` if needed and hold its lock for the block; ``ValueError`` when another process holds it."""
+    """Create ``out`` if needed and hold its lock for the block; ``ValueError`` when another process holds it.
+
+    A directory that this call created and that holds nothing but the lock when the block ends (the run failed
+    before writing anything) is removed again.
+    """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} is a file, not a directory")
+    try:
+        out.mkdir(parents=True)
+        created = True
+    except FileExistsError:
+        created = False
     fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    locked = False
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            locked = True
         except BlockingIOError:
             holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
             raise ValueError(
@@ -45,7 +58,33 @@ def claim_run_dir(out: str | Path) -> Iterator[Path]:
             remove_leftovers(out / name)
         yield out
     finally:
+        if created and locked:
+            remove_if_unused(out)
         os.close(fd)
+
+
+def new_run_dir(stem: str | Path) -> Path:
+    """Create and return the first of ``stem``, ``stem-2``, ``stem-3``, ... that does not exist yet.
+
+    Each name is taken by an atomic ``mkdir``, so runs started at the same moment get different directories.
+    """
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    for n in itertools.count(1):
+        path = stem if n == 1 else stem.with_name(f"{stem.name}-{n}")
+        try:
+            path.mkdir()
+            return path
+        except FileExistsError:
+            continue
+
+
+def remove_if_unused(out: str | Path) -> None:
+    """Remove the directory ``out`` if it holds nothing but a run's lock file (nothing of a run was written)."""
+    out = Path(out)
+    if out.is_dir() and {p.name for p in out.iterdir()} <= {LOCK}:
+        (out / LOCK).unlink(missing_ok=True)
+        out.rmdir()
 
 
 def run_files(out: str | Path) -> list[str]:

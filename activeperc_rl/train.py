@@ -34,6 +34,7 @@ from activeperc_rl.checkpoint import (
     METRICS,
     MetricsLog,
     load_checkpoint,
+    restore_method,
     save_checkpoint,
 )
 from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_yaml
@@ -91,7 +92,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     window = deque(maxlen=config.success_window)
     resumed = state is not None
     if resumed:
-        method.load_state_dict(state["method"])
+        restore_method(method, state, out / CHECKPOINT)
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
         window.extend(state["window"])
         torch.set_rng_state(state["torch_rng"])

@@ -19,7 +19,7 @@ from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
 from activeperc_rl.checkpoint import MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
-from activeperc_rl.rundir import claim_run_dir
+from activeperc_rl.rundir import claim_run_dir, new_run_dir
 from activeperc_rl.signals import stop_signals
 
 # A few thousand frames on tiny settings: short episodes so that some end inside the run.
@@ -122,7 +122,7 @@ def test_a_second_process_in_the_same_run_directory_is_refused(tmp_path, capsys)
     with claim_run_dir(out):  # as another activeperc-train would hold it
         assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 2
     assert f"in use by another training process (pid {os.getpid()})" in capsys.readouterr().err
-    assert [p.name for p in out.iterdir()] == [".lock"]
+    assert not out.exists()  # the holder made it and wrote nothing, so it went with its lock
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # free again
 
 
@@ -156,7 +156,7 @@ def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsy
     monkeypatch.setattr(train_module, "make_method", interrupted_start)
     assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 130
     assert "interrupted" in capsys.readouterr().err
-    assert [p.name for p in out.iterdir()] == [".lock"]
+    assert not out.exists()  # made for the run and left unused: removed again
     monkeypatch.undo()
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # the same command again
 
@@ -166,6 +166,28 @@ def test_an_unwritable_run_directory_is_one_line(tmp_path, capsys):
     assert cli.main([*TINY, "--out", str(tmp_path / "file" / "run"), "--frames", "64"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("activeperc-train: error:") and "file" in err and "Traceback" not in err
+    assert cli.main([*TINY, "--out", str(tmp_path / "file"), "--frames", "64"]) == 2
+    assert f"--out {str(tmp_path / 'file')!r} is a file, not a directory" in capsys.readouterr().err
+
+
+def test_a_run_that_fails_to_start_leaves_no_directory(tmp_path, capsys, monkeypatch):
+    """A run refused after its directory was made (here: an image too small for the encoder) removes it again,
+    the default runs/METHOD-seedS-TIME too; a directory that existed before is left alone."""
+    monkeypatch.chdir(tmp_path)
+    small = ["--width", "8", "--height", "8", "--channels", "8", "8", "8", "--frames", "64"]
+    assert cli.main([*TINY, *small]) == 2
+    assert "activeperc-train: error:" in capsys.readouterr().err
+    assert list((tmp_path / "runs").iterdir()) == []
+    assert cli.main([*TINY, *small, "--out", "new/run"]) == 2
+    assert not (tmp_path / "new" / "run").exists()
+    (tmp_path / "mine").mkdir()
+    assert cli.main([*TINY, *small, "--out", "mine"]) == 2
+    assert (tmp_path / "mine").is_dir()
+
+
+def test_default_run_directories_of_the_same_second_differ(tmp_path):
+    stem = tmp_path / "runs" / "meta-seed0-20261124-031500"
+    assert [new_run_dir(stem).name for _ in range(3)] == [stem.name, f"{stem.name}-2", f"{stem.name}-3"]
 
 
 def test_resume_with_other_options_names_them(tmp_path, capsys):
@@ -224,6 +246,7 @@ def test_bad_flags_are_named(tmp_path, capsys):
     [
         ("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0), ("lr", "7e-4"),
         ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
+        ("lr", float("inf")), ("max_grad_norm", float("nan")), ("entropy_coeff", float("inf")), ("seed", 2**63),
     ],
 )  # fmt: skip
 def test_invalid_training_value_names_the_field(field, value):
@@ -246,15 +269,18 @@ def test_preset_then_flags(tmp_path):
 def test_preset_numbers_in_exponent_notation(tmp_path):
     """PyYAML reads 3e-5 as a string (YAML 1.1); presets read it as the number everyone means."""
     preset = tmp_path / "p.yaml"
-    preset.write_text("lr: 7e-4\nlooker_lr: 3E-5\nalpha: .5e-1\nframes: 3000\nenv:\n  fov: 1e2\n")
+    preset.write_text("lr: 7e-4\nlooker_lr: 3E-5\nalpha: .5e-1\nframes: 2e6\nenv:\n  fov: 1e2\n")
     config = cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
-    assert (config.lr, config.looker_lr, config.alpha, config.frames, config.env.fov) == (7e-4, 3e-5, 0.05, 3000, 100.0)
+    assert (config.lr, config.looker_lr, config.alpha, config.frames, config.env.fov) == (7e-4, 3e-5, 0.05, 2e6, 100.0)
+    assert type(config.frames) is int
+    config = cli.config_from_args(cli.build_parser().parse_args(["--frames", "3e5", "--channels", "8", "1.6e1"]))
+    assert (config.frames, config.channels) == (300_000, (8, 16))
 
 
 @pytest.mark.parametrize(
     ("text", "named"),
     [
-        ("frames: 1e4\n", "TrainConfig.frames=10000.0"),
+        ("frames: 2.5e-1\n", "TrainConfig.frames=0.25"),
         ("env: {fov: '100'}\n", "EnvConfig.fov='100'"),
         ("channels: 16\n", "TrainConfig.channels=16"),
         ("env: [1, 2]\n", "'env'"),
@@ -267,6 +293,11 @@ def test_bad_preset_values_are_named(tmp_path, capsys, text, named):
     assert cli.main(["--config", str(preset), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
     assert named in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_preset_that_is_a_directory_is_named(tmp_path, capsys):
+    assert cli.main(["--config", str(tmp_path), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert f"config file {str(tmp_path)!r} is a directory" in capsys.readouterr().err
 
 
 def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
@@ -451,6 +482,38 @@ def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
         (empty, "no checkpoint at '" + str(empty / "checkpoint.pt")),
     ):
         assert evaluate.main([str(path)]) == 2
+        assert named in capsys.readouterr().err
+
+
+def test_a_checkpoint_whose_networks_do_not_fit_its_config_is_one_line(tmp_path, capsys):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    state = load_checkpoint(out / "checkpoint.pt")
+    save_checkpoint(out / "checkpoint.pt", state | {"config": state["config"] | {"hidden_size": 64}})
+    capsys.readouterr()
+    assert evaluate.main([str(out), "--episodes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "checkpoint.pt' is unusable: its 'mover_actor' does not fit the config" in err
+    assert "size mismatch" in err and "Traceback" not in err
+    save_checkpoint(out / "checkpoint.pt", state | {"method": {"weights": 1}})
+    assert evaluate.main([str(out), "--episodes", "2"]) == 2
+    assert "unusable: it holds no networks" in capsys.readouterr().err
+
+
+def test_eval_checks_the_video_path_before_it_plays(tmp_path, capsys, monkeypatch):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    capsys.readouterr()
+
+    def no_play(*args, **kwargs):
+        raise AssertionError("the episodes were played before the video path was checked")
+
+    monkeypatch.setattr(evaluate, "make_env", no_play)
+    (tmp_path / "taken.mp4").mkdir()
+    (tmp_path / "file").write_text("")
+    for video, named in (
+        (tmp_path / "taken.mp4", "taken.mp4' is a directory, not a file"),
+        (tmp_path / "file" / "x.mp4", f"{str(tmp_path / 'file')!r} is a file, not a directory"),
+    ):
+        assert evaluate.main([str(out), "--episodes", "2", "--video", str(video)]) == 2
         assert named in capsys.readouterr().err
 
 

@@ -63,7 +63,7 @@ def test_train_table_lists_every_flag_with_its_default():
     for action in from_fields:
         flag, expected = action.option_strings[0], f"`{as_typed(defaults[action.dest])}`"
         assert rows[flag] == expected, f"docs/training.md gives {flag} the default {rows[flag]}, not {expected}"
-        assert f"(default: {defaults[action.dest]})" in action.help, f"{flag}'s --help shows another default"
+        assert f"(default: {as_typed(defaults[action.dest])})" in action.help, f"{flag}'s --help shows another default"
     documented = set(rows) - {"--no-" + a.dest.replace("_", "-") for a in actions}
     assert documented <= {a.option_strings[0] for a in actions}, "the table lists flags the parser lacks"
 
