@@ -53,9 +53,13 @@ are split over several envs), so two envs seeded alike
 in the same layout; ``episode_seeds`` holds each room's current episode seed. A seed takes effect at each
 room's next reset: seed an env before its first reset (``make_env(seed=...)``), or reset it after seeding. A
 TorchRL ``Collector`` resets its env when it is built, so ``collector.set_seed(s)`` needs a
-``collector.reset()`` after it (or build the env with ``seed=``). Training rooms
+``collector.reset()`` after it (or build the env with ``seed=``); ``env.reset(seed=s)`` is ``env.set_seed(s)``
+followed by the reset. Training rooms
 (``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
 evaluation layout never repeats a training layout whatever the base seeds.
+
+The env holds MuJoCo's batched physics and a GL context, which cannot be pickled or copied: give
+``ParallelEnv`` and multi-process collectors a function that builds it (``functools.partial(make_env, ...)``).
 """
 
 from __future__ import annotations
@@ -207,7 +211,9 @@ class ActivePerceptionEnv(EnvBase):
         """Put ``module`` in the loop (``None``: external mode); the specs are rebuilt.
 
         The module is dry-run once on zeros (under a forked torch RNG, so seeding is unaffected)
-        to find the entries it writes; they must all lie under ``"looker"``.
+        to find the entries it writes; they must all lie under ``"looker"``. A ``TransformedEnv`` around
+        this env keeps its own copy of the specs: call ``empty_cache()`` on it after this (or set the looker
+        before wrapping).
         """
         if module is None:
             self._looker = None
@@ -215,7 +221,7 @@ class ActivePerceptionEnv(EnvBase):
             return
         n = self.batch_size
         fake = TensorDict({LOOKER: {"observation": self._obs_spec.zero()}}, batch_size=n, device=self.device)
-        devices = [self.device] if self.device.type == "cuda" else []
+        devices = [self.device] if self.device is not None and self.device.type == "cuda" else []
         with torch.no_grad(), torch.random.fork_rng(devices=devices):
             out = module(fake.clone())
         out = fake if out is None else out
@@ -239,7 +245,14 @@ class ActivePerceptionEnv(EnvBase):
         self._update_specs()
 
     # ------------------------------------------------------------------ EnvBase API
-    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+    def _reset(
+        self, tensordict: TensorDictBase | None = None, seed: int | None = None, **kwargs
+    ) -> TensorDictBase:
+        unknown = sorted(set(kwargs) - {"set_state"})  # TorchRL's own keyword; our rooms have no state to set
+        if unknown:
+            raise TypeError(f"reset() got unknown keyword argument(s) {unknown}; it takes seed=")
+        if seed is not None:
+            self._set_seed(seed)
         mask = None if tensordict is None else tensordict.get("_reset", None)
         if mask is None:
             ids = np.arange(self.num_envs)
@@ -286,6 +299,8 @@ class ActivePerceptionEnv(EnvBase):
 
     def _set_seed(self, seed: int | None) -> None:
         """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(first_room + i,))``."""
+        if seed is not None and not (is_int(seed) and seed >= 0):
+            raise ValueError(f"seed={seed!r} is invalid: expected None or an int >= 0")
         self._seed_rngs = [
             np.random.default_rng(
                 None if seed is None else np.random.SeedSequence(seed, spawn_key=(self.first_room + i,))
@@ -316,4 +331,9 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
 def _to_numpy(action: torch.Tensor | None, n: int, agent: str) -> np.ndarray:
     if action is None:
         raise KeyError(f"({agent!r}, 'action') missing from the input tensordict")
+    if action.numel() != n:
+        raise ValueError(
+            f"({agent!r}, 'action') of shape {tuple(action.shape)} is invalid: expected {n} action indices, "
+            f"shape ({n},) or ({n}, 1) (one-hot actions are not taken)"
+        )
     return action.detach().reshape(n).cpu().numpy()

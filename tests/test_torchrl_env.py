@@ -154,6 +154,31 @@ def test_same_seed_same_observations():
     assert not torch.equal(runs[0]["mover", "observation", "image"], runs[2]["mover", "observation", "image"])
 
 
+def test_reset_takes_a_seed_and_names_other_arguments():
+    """reset(seed=s) is set_seed(s) then the reset, as TorchRL's Gym wrappers read it."""
+    image = ("mover", "observation", "image")
+    a, b, c = (make_env(num_envs=2) for _ in range(3))
+    assert torch.equal(a.reset(seed=3)[image], b.reset(seed=3)[image])
+    assert torch.equal(a.reset(seed=3)[image], make_env(num_envs=2, seed=3).reset()[image])
+    assert not torch.equal(a.reset(seed=3)[image], c.reset(seed=4)[image])
+    with pytest.raises(TypeError, match="seeds"):
+        a.reset(seeds=3)
+    for bad in (-1, 1.5, "a"):
+        with pytest.raises(ValueError, match=f"seed={bad!r}"):
+            a.set_seed(bad)
+
+
+def test_bad_action_shapes_and_a_device_of_none():
+    env = make_env(num_envs=2)
+    td = env.reset()
+    td.set(("mover", "action"), torch.nn.functional.one_hot(torch.tensor([0, 2]), 3))
+    td.set(("looker", "action"), torch.tensor([1, 1]))
+    with pytest.raises(ValueError, match=r"\('mover', 'action'\) of shape \(2, 3\) is invalid.*one-hot"):
+        env.step(td)
+    looking = make_env(num_envs=2, device=None, looker=constant_looker(1))
+    looking.rollout(2, policy=replay(torch.zeros(2, 2, dtype=torch.int64)))
+
+
 def test_collector_set_seed_then_reset_repeats_the_layouts():
     """The Collector resets its env when built, before set_seed; its reset() restarts the rooms on the new seeds."""
 
