@@ -112,6 +112,11 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     assert all(int(r["frames"]) >= 160 for r in extended)
     frames = [int(r["frames"]) for r in read_csv(runs / "fixed_forward_fov60" / "seed3" / "metrics.csv")]
     assert frames == sorted(frames) and len(set(frames)) == len(frames)
+    capsys.readouterr()
+    more = [a if a != "2" else "3" for a in base]  # --eval-episodes 3: the runs' evaluations of 2 do not count
+    assert sweep.main([*more, "--frames", "160", *TINY]) == 0
+    assert "0 done, 2 to run" in capsys.readouterr().out
+    assert sweep.is_finished(runs / "fixed_forward_fov60" / "seed3", 160, 3)
 
     looker_stats = load("looker_stats")
     table = tmp_path / "looker.csv"
@@ -254,10 +259,54 @@ def test_reproduction_doc_quotes_the_committed_results(aggregate):
 
 
 
+def test_a_run_counts_as_finished_only_with_an_evaluation_of_its_last_frames(sweep, tmp_path):
+    """An eval.json left from a budget the run was continued from since is stale; a run stopped past the budget
+    is resumed to its own frames (which evaluates it where it stands), not to a total below them."""
+    import json
+
+    import torch
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "eval.json").write_text(json.dumps({"frames": 5120, "learned": {"episodes": 100}}))
+    (run / "metrics.csv").write_text("frames,success_rate\n5120,0.1\n")
+    assert sweep.is_finished(run, 2000, 100) and not sweep.is_finished(run, 2000, 50)
+    assert not sweep.is_finished(run, 6000, 100)
+    (run / "metrics.csv").write_text("frames,success_rate\n5120,0.1\n16640,0.2\n16900,0.")  # a torn last row
+    assert not sweep.is_finished(run, 2000, 100)
+    torch.save({"config": TrainConfig().to_dict(), "method": {}, "frames": 16640}, run / "checkpoint.pt")
+    task = sweep.Task(FIG1 / "configs" / "fixed_forward_fov60.yaml", 0)
+    command = sweep.train_command(task, run, 2000, 100, [])
+    assert command[command.index("--frames") + 1] == "16640" and "--resume" in command
+
+
+def test_aggregate_refuses_to_average_budgets(aggregate, tmp_path, capsys):
+    rows = read_csv(FIG1 / "results" / "summary.csv")
+    rows[0]["frames"] = "638208"
+    with open(tmp_path / "summary.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    with pytest.raises(SystemExit):
+        aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--doc", str(tmp_path / "d")])
+    error = capsys.readouterr().err
+    assert f"{rows[0]['method']} at {rows[0]['fov']} degrees: 300288 frames" in error and "638208 frames" in error
+    (tmp_path / "summary.csv").write_text("".join(open(FIG1 / "results" / "summary.csv").readlines()[:3])[:-20])
+    with pytest.raises(SystemExit):
+        aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--doc", str(tmp_path / "d")])
+    assert "summary.csv, line 3: a row with missing or extra values" in capsys.readouterr().err
+
+
 def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
     with pytest.raises(SystemExit):
         sweep.main(["--seeds", "0", "-1", "--dry-run"])
     assert "--seeds [0, -1]" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        sweep.main(["--seeds", "0", "1", "0", "--dry-run"])
+    assert "[0] given more than once" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        sweep.main(["--only", "meta_eps0.3_alpha0.01_fov60", "--dry-run"])
+    assert "ablations: add --ablations" in capsys.readouterr().err
     (tmp_path / "summary.csv").write_text((FIG1 / "results" / "summary.csv").read_text())
     (tmp_path / "doc.md").write_text("no markers here\n")
     for doc, message in ((tmp_path / "missing.md", "does not exist"), (tmp_path / "doc.md", "fig1-summary")):
@@ -277,6 +326,17 @@ def test_looker_stats_reads_the_untrained_entropy_and_names_bad_runs(tmp_path, c
     assert looker_stats.main([str(tmp_path)]) == 2
     error = capsys.readouterr().err
     assert str(tmp_path) in error and "metrics.csv" in error
+    header = "frames,iteration,time_s,fps,success_rate,mean_return,episodes\n"
+    (tmp_path / "metrics.csv").write_text(header)
+    assert looker_stats.main([str(tmp_path)]) == 2
+    assert "has logged no iteration yet" in capsys.readouterr().err
+    (tmp_path / "metrics.csv").write_text(header + "8,1,1,8,0,0,0\n")
+    assert looker_stats.main([str(tmp_path)]) == 2
+    assert "has no TensorBoard log" in capsys.readouterr().err
+    empty = tmp_path / "empty.csv"
+    empty.write_text(",".join(looker_stats.COLUMNS) + "\n")
+    assert looker_stats.main(["--from-csv", str(empty)]) == 2
+    assert "holds no rows" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -77,8 +77,10 @@ def mean_ci(values) -> tuple[float, float]:
 def read_curve(path: Path) -> dict[str, np.ndarray]:
     """A run's exported curve as arrays, from the first row whose average spans ``FULL_WINDOW`` episodes.
 
-    A run too short to finish that many episodes gives empty arrays.
+    A run too short to finish that many episodes gives empty arrays; a missing or empty curve is a ``ValueError``.
     """
+    if not path.is_file():
+        raise ValueError(f"{path} does not exist: sweep.py exports it when the run finishes (use the same --results)")
     with open(path, newline="") as file:
         rows = list(csv.DictReader(file))
     if not rows:
@@ -95,6 +97,22 @@ def group_runs(rows: list[dict]) -> dict[tuple[str, int], list[dict]]:
         groups.setdefault((row["method"], int(row["fov"])), []).append(row)
 
     return {key: groups[key] for key in sorted(groups, key=lambda key: (method_rank(key[0]), *key))}
+
+
+def check_one_budget(rows: list[dict]) -> None:
+    """``ValueError`` naming each (method, fov) whose runs were trained to different frame counts."""
+    mixed = []
+    for (method, fov), runs in group_runs(rows).items():
+        frames = sorted({int(r["frames"]) for r in runs})
+        if len(frames) > 1:
+            seeds = {f: [r["seed"] for r in runs if int(r["frames"]) == f] for f in frames}
+            budgets = ", ".join(f"{f} frames (seeds {s})" for f, s in seeds.items())
+            mixed.append(f"{method} at {fov} degrees: {budgets}")
+    if mixed:
+        raise ValueError(
+            "runs of different budgets would be averaged together: " + "; ".join(mixed)
+            + ". Give each budget its own folder (sweep.py --results DIR, then aggregate.py --results DIR)"
+        )
 
 
 def seed_band(curves: list[dict[str, np.ndarray]], key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -173,10 +191,8 @@ def summary_table(rows: list[dict]) -> str:
         "|---|---|---|---|---|---|---|---|",
     ]
     for (method, fov), runs in sorted(group_runs(rows).items(), key=lambda item: item[0][1]):
-        frames = sorted({int(r["frames"]) for r in runs})
         lines.append(
-            f"| {fov} | {method} | {','.join(str(r['seed']) for r in runs)} | "
-            f"{frames[0] if len(frames) == 1 else f'{frames[0]}-{frames[-1]}'} | "
+            f"| {fov} | {method} | {','.join(str(r['seed']) for r in runs)} | {runs[0]['frames']} | "
             f"{cell(r['final_success_rate'] for r in runs)} | {cell(r['final_return'] for r in runs)} | "
             f"{cell(r['random_success_rate'] for r in runs)} | {cell((r['train_minutes'] for r in runs), 1)} |"
         )
@@ -201,21 +217,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--doc", type=Path, default=DOC, help="the document whose table is updated")
     args = parser.parse_args(argv)
     name = "ablations" if args.ablations else "summary"
-    rows = read_summary(args.results / f"{name}.csv")
-    if not rows:
-        parser.error(f"no results in {args.results / f'{name}.csv'}: run sweep.py first")
-    if args.ablations:
-        rows = with_reference(rows, read_summary(args.results / "summary.csv"))
-    table = summary_table(rows)
-    marker = "fig1-ablations" if args.ablations else "fig1-summary"
-    if not args.doc.is_file():
-        parser.error(f"--doc {str(args.doc)!r} does not exist")
     try:
-        text = replace_between(args.doc.read_text(), marker, table)
+        rows = read_summary(args.results / f"{name}.csv")
+        if not rows:
+            raise ValueError(f"no results in {args.results / f'{name}.csv'}: run sweep.py first")
+        if args.ablations:
+            rows = with_reference(rows, read_summary(args.results / "summary.csv"))
+        check_one_budget(rows)
+        table = summary_table(rows)
+        marker = "fig1-ablations" if args.ablations else "fig1-summary"
+        if not args.doc.is_file():
+            raise ValueError(f"--doc {str(args.doc)!r} does not exist")
+        try:
+            text = replace_between(args.doc.read_text(), marker, table)
+        except ValueError as error:
+            raise ValueError(f"--doc {str(args.doc)!r}: {error}") from None
+        figure = args.figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
+        plot_curves(rows, args.results / "runs", figure)
     except ValueError as error:
-        parser.error(f"--doc {str(args.doc)!r}: {error}")
-    figure = args.figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
-    plot_curves(rows, args.results / "runs", figure)
+        parser.error(str(error))
     print(table, end="")
     with atomic_path(args.doc) as temporary:
         temporary.write_text(text)

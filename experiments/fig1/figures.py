@@ -101,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.seed is not None and args.seed < 0:
         parser.error(f"--seed={args.seed} is invalid: expected an int >= 0")
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {str(args.out)!r} is a file: give a folder")
     seed = revealing_seed() if args.seed is None else args.seed
     for path in save_figures(seed, args.out):
         print(f"wrote {path}")

@@ -34,7 +34,7 @@ from statistics import fmean
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # aggregate.py sits next to this file
 
 from aggregate import replace_between  # noqa: E402
-from sweep import read_summary  # noqa: E402
+from sweep import read_rows  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 from activeperc_rl.config import load_yaml  # noqa: E402
@@ -72,7 +72,12 @@ def run_row(run_dir: Path, last: int) -> dict:
     if not metrics.is_file():
         raise ValueError(f"{str(run_dir)!r} is not a training run: it has no metrics.csv")
     with open(metrics, newline="") as f:
-        final = list(csv.DictReader(f))[-1]
+        logged = list(csv.DictReader(f))
+    if not logged:
+        raise ValueError(f"{str(run_dir)!r} has logged no iteration yet: its metrics.csv has no rows")
+    if not (run_dir / "tb").is_dir():
+        raise ValueError(f"{str(run_dir)!r} has no TensorBoard log (tb/), where the looker's statistics are")
+    final = logged[-1]
     row = dict.fromkeys(COLUMNS, "")
     row |= {"run": run_name(run_dir), "frames": int(final["frames"]), "success_rate": float(final["success_rate"])}
     scalars = read_scalars(run_dir / "tb", ("meta/e1_pan_rate", "looker/entropy"))
@@ -133,9 +138,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.from_csv:
             if not args.from_csv.is_file():
                 raise ValueError(f"--from-csv {str(args.from_csv)!r} does not exist")
-            merged = {row["run"]: row for row in read_summary(args.from_csv)}
+            merged = {row["run"]: row for row in read_rows(args.from_csv, COLUMNS[:3])}
             merged.update((row["run"], row) for row in rows)
             rows = sorted(merged.values(), key=lambda row: row["run"]) if args.runs else list(merged.values())
+            if not rows:
+                raise ValueError(f"--from-csv {str(args.from_csv)!r} holds no rows")
         doc = None
         if args.doc:
             if not args.doc.is_file():

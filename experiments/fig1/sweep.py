@@ -11,9 +11,13 @@ finished so far, success_rate, mean_return; at most 200 rows) and its row is mer
 ``--eval-episodes`` held-out episodes, beside a uniformly random mover and looker on the same ones.
 
 Resumable: run the same command again and finished runs are skipped, interrupted ones continue from
-their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. Ctrl-C stops
-every run cleanly (each saves its checkpoint first), and so do a SIGTERM and the SIGHUP of a closing
-terminal. Two sweeps cannot run on the same ``--runs`` folder at once (a lock file refuses the second).
+their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. A run counts as
+finished when its ``eval.json`` is of its last logged frames (not of an earlier budget it was continued
+from), of ``--frames`` or more, over ``--eval-episodes`` episodes; a run already trained past ``--frames`` is
+evaluated where it stands. Ctrl-C stops every run cleanly (each saves its checkpoint first; a second Ctrl-C
+aborts them at once), and so do a SIGTERM and the SIGHUP of a closing terminal. Two sweeps cannot run on
+the same ``--runs`` folder at once (a lock file refuses the second). A different budget belongs in its own
+``--results`` folder: ``aggregate.py`` refuses a config whose runs have different frame counts.
 
 Cores: the machine's CPUs are split into ``--jobs`` groups of ``--cores-per-job`` (default 1 core per
 run, as many runs at once as cores) and each run is pinned to its group, so its physics threads and its
@@ -22,7 +26,8 @@ learner use that group only. Each run uses the GPU when one is present (``device
 Examples (from the repository root)::
 
     python experiments/fig1/sweep.py --frames 300000 --seeds 0 1 2 3 4    # the committed CPU pilot's runs
-    python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2
+    python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2 \
+        --results experiments/fig1/results/frames2m
     python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 -- --num-envs 32
     python experiments/fig1/sweep.py --ablations --frames 300000 --seeds 0 1 2
 
@@ -46,9 +51,9 @@ from pathlib import Path
 
 import numpy as np
 
-from activeperc_env.core import usable_cpus
+from activeperc_env.core import MAX_SEED, usable_cpus
 from activeperc_rl.atomic import atomic_path
-from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS
+from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS, load_checkpoint
 from activeperc_rl.rundir import run_files
 from activeperc_rl.signals import stop_raises_interrupt
 
@@ -124,15 +129,38 @@ def find_configs(ablations: bool = False, only: list[str] | None = None, root: P
         names = {p.stem: p for p in paths}
         missing = sorted(set(only) - set(names))
         if missing:
-            raise ValueError(f"--only {missing}: no such config; known: {sorted(names)}")
+            elsewhere = root if ablations else root / "ablations"
+            hint = ""
+            if all((elsewhere / f"{name}.yaml").is_file() for name in missing):
+                hint = " (Figure 1's configs: drop --ablations)" if ablations else " (ablations: add --ablations)"
+            raise ValueError(f"--only {missing}: no such config; known: {sorted(names)}{hint}")
         paths = [p for p in paths if p.stem in only]
     return paths
 
 
-def is_finished(run_dir: Path, frames: int) -> bool:
-    """Whether the run has its final evaluation (``eval.json``) at ``frames`` frames or more."""
+def is_finished(run_dir: Path, frames: int, eval_episodes: int) -> bool:
+    """Whether the run's final evaluation (``eval.json``) is of its last logged frames, ``frames`` or more of
+    them, over ``eval_episodes`` episodes (not a stale one of a budget the run was continued from since)."""
     path = run_dir / EVAL
-    return path.is_file() and int(json.loads(path.read_text())["frames"]) >= frames
+    if not path.is_file():
+        return False
+    evaluation = json.loads(path.read_text())
+    evaluated = int(evaluation["frames"])
+    return (
+        evaluated >= frames
+        and evaluated == last_logged_frames(run_dir)
+        and evaluation["learned"]["episodes"] == eval_episodes
+    )
+
+
+def last_logged_frames(run_dir: Path) -> int | None:
+    """The frames of the last whole row of the run's ``metrics.csv`` (``None`` without one)."""
+    path = run_dir / METRICS
+    if not path.is_file():
+        return None
+    with open(path, newline="") as file:
+        rows = [row for row in csv.DictReader(file) if (row.get("frames") or "").isdigit()]
+    return int(rows[-1]["frames"]) if rows else None
 
 
 def method_rank(method: str) -> int:
@@ -141,11 +169,18 @@ def method_rank(method: str) -> int:
 
 
 def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, extra: list[str]) -> list[str]:
-    """The ``activeperc-train`` call of a task: a resume when the run has a checkpoint, else a fresh run."""
-    command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--frames", str(frames)]
-    if (run_dir / CHECKPOINT).is_file():
-        command.append("--resume")
+    """The ``activeperc-train`` call of a task: a resume when the run has a checkpoint, else a fresh run.
+
+    A checkpoint already past ``frames`` (a run continued to a larger budget and stopped) is resumed to its own
+    frames, which evaluates it where it stands (the trainer refuses a total below what it has trained).
+    """
+    checkpoint = run_dir / CHECKPOINT
+    if checkpoint.is_file():
+        trained = int(load_checkpoint(checkpoint)["frames"])
+        command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--resume"]
+        command += ["--frames", str(max(frames, trained))]
     else:
+        command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--frames", str(frames)]
         command += ["--config", str(task.config), "--seed", str(task.seed)]
     return command + ["--eval-episodes", str(eval_episodes), "--no-progress", *extra]
 
@@ -172,20 +207,37 @@ def export_run(task: Task, run_dir: Path, results: Path) -> dict:
         "fov": task.fov,
         "seed": task.seed,
         "frames": evaluation["frames"],
-        "final_success_rate": evaluation["learned"]["success_rate"],
+        "final_success_rate": round(evaluation["learned"]["success_rate"], 4),
         "final_return": round(evaluation["learned"]["mean_return"], 4),
-        "random_success_rate": evaluation["random"]["success_rate"],
+        "random_success_rate": round(evaluation["random"]["success_rate"], 4),
         "random_return": round(evaluation["random"]["mean_return"], 4),
         "train_minutes": round(float(rows[-1]["time_s"]) / 60, 1),
     }
 
 
 def read_summary(path: Path) -> list[dict]:
-    """The rows of a summary CSV (empty when the file does not exist)."""
+    """The rows of a summary CSV (empty when the file does not exist); see :func:`read_rows`."""
+    return read_rows(path, SUMMARY_COLUMNS)
+
+
+def read_rows(path: Path, required: tuple[str, ...]) -> list[dict]:
+    """The rows of a CSV this folder's scripts wrote (empty when the file does not exist).
+
+    ``ValueError`` naming the file when its header lacks a ``required`` column, or naming the line of a row
+    with too few or too many values or an empty ``required`` one (a file cut short, or edited by hand).
+    """
     if not path.is_file():
         return []
     with open(path, newline="") as file:
-        return list(csv.DictReader(file))
+        reader = csv.DictReader(file)
+        rows = list(reader)
+    missing = [c for c in required if c not in (reader.fieldnames or ())]
+    if missing:
+        raise ValueError(f"{path} has no column {missing}: not a file these scripts wrote")
+    for line, row in enumerate(rows, start=2):
+        if None in row or None in row.values() or not all(row[c] for c in required):
+            raise ValueError(f"{path}, line {line}: a row with missing or extra values: {row}")
+    return rows
 
 
 def merge_summary(path: Path, new_rows: list[dict]) -> None:
@@ -235,7 +287,7 @@ def run_sweep(
     results = summary.parent
     pending, done_rows = [], []
     for task in tasks:
-        if is_finished(task.run_dir(runs), frames):
+        if is_finished(task.run_dir(runs), frames, eval_episodes):
             done_rows.append(export_run(task, task.run_dir(runs), results))
         else:
             pending.append(task)
@@ -260,7 +312,7 @@ def run_sweep(
                 free.append(slot)
                 run_dir = task.run_dir(runs)
                 minutes = (time.time() - started) / 60
-                if process.returncode == 0 and is_finished(run_dir, frames):
+                if process.returncode == 0 and is_finished(run_dir, frames, eval_episodes):
                     row = export_run(task, run_dir, results)
                     merge_summary(summary, [row])
                     print(f"sweep: done {task.label} in {minutes:.1f} min: success {row['final_success_rate']} "
@@ -272,16 +324,29 @@ def run_sweep(
     except KeyboardInterrupt:
         print("\nsweep: Ctrl-C: every run saves its checkpoint and stops; run the same command to continue",
               flush=True)
-        for process, _, _ in running.values():
-            process.send_signal(signal.SIGINT)
-        for process, _, _ in running.values():
-            process.wait()
+        _stop([process for process, _, _ in running.values()])
         return 130
     if failed:
         print(f"sweep: {len(failed)} run(s) failed: {', '.join(t.label for t in failed)}", flush=True)
         return 1
     print(f"sweep: all {len(tasks)} runs done; rows in {summary}", flush=True)
     return 0
+
+
+def _stop(processes: list[subprocess.Popen]) -> None:
+    """Pass a stop on to the runs and wait for them; a second stop is passed on too (the runs then abort at once,
+    their last checkpoints whole)."""
+    for process in processes:
+        process.send_signal(signal.SIGINT)
+    while any(process.poll() is None for process in processes):
+        try:
+            for process in processes:
+                process.wait()
+        except KeyboardInterrupt:
+            print("\nsweep: stopped again: the runs abort now, without a new checkpoint", flush=True)
+            for process in processes:
+                if process.poll() is None:
+                    process.send_signal(signal.SIGINT)
 
 
 def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra) -> subprocess.Popen:
@@ -326,17 +391,23 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.frames < 1 or args.eval_episodes < 1:
             raise ValueError(f"--frames={args.frames} and --eval-episodes={args.eval_episodes} must be >= 1")
-        if min(args.seeds) < 0:
-            raise ValueError(f"--seeds {args.seeds}: seeds must be >= 0")
+        if not all(0 <= seed <= MAX_SEED for seed in args.seeds):
+            raise ValueError(f"--seeds {args.seeds}: seeds must be in [0, 2**63 - 1]")
+        twice = sorted({seed for seed in args.seeds if args.seeds.count(seed) > 1})
+        if twice:
+            raise ValueError(f"--seeds {args.seeds}: {twice} given more than once")
         configs = find_configs(args.ablations, args.only)
         groups = core_groups(args.jobs, args.cores_per_job)
+        if groups[0] is None and args.cores_per_job > 1:
+            print(f"sweep: {len(groups)} runs of {args.cores_per_job} cores do not fit this machine's CPUs: "
+                  "the runs are not pinned", flush=True)
     except ValueError as error:
         parser.error(str(error))
     tasks = [Task(config, seed) for seed in args.seeds for config in configs]
     summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
     if args.dry_run:
         for task in tasks:
-            state = "done" if is_finished(task.run_dir(args.runs), args.frames) else "to run"
+            state = "done" if is_finished(task.run_dir(args.runs), args.frames, args.eval_episodes) else "to run"
             command = train_command(task, task.run_dir(args.runs), args.frames, args.eval_episodes, extra)
             print(f"{task.label}: {state}: {' '.join(command)}")
         return 0
