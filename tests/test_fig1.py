@@ -172,6 +172,32 @@ def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
     assert "--resume" in sweep.train_command(task, task.run_dir(runs), 100000, 100, [])
 
 
+def test_a_second_stop_is_passed_on_to_the_runs(sweep, capsys):
+    """A second Ctrl-C while the runs save is passed on (they abort at once) instead of ending the sweep in a
+    traceback with the runs still going."""
+
+    class Run:
+        def __init__(self):
+            self.signals, self.waits = [], 0
+
+        def send_signal(self, number):
+            self.signals.append(number)
+
+        def poll(self):
+            return 130 if len(self.signals) == 2 else None
+
+        def wait(self):
+            self.waits += 1
+            if self.waits == 1:
+                raise KeyboardInterrupt  # the second Ctrl-C arrives while the sweep waits
+            return self.poll()
+
+    runs = [Run(), Run()]
+    sweep._stop(runs)
+    assert [run.signals for run in runs] == [[signal.SIGINT, signal.SIGINT]] * 2
+    assert "stopped again: the runs abort now" in capsys.readouterr().out
+
+
 def test_a_hangup_stops_the_runs_as_ctrl_c_does(tmp_path):
     """SIGHUP to the sweep, whose terminal is gone (a dropped SSH session): no run is left orphaned."""
     runs = tmp_path / "runs"
