@@ -27,7 +27,8 @@ class TiledRenderer:
     Args:
         model: the compiled scene (its offscreen buffer size is set here).
         width, height: size of one first-person view in pixels.
-        max_views: the most views one ``render`` call draws.
+        max_views: the views the offscreen buffer is sized for (one pass draws them all as tiles; a ``render``
+            call with more takes several passes).
     """
 
     def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int):
@@ -147,7 +148,9 @@ class TiledRenderer:
     def close(self) -> None:
         """Release the GL resources."""
         if self._gl is not None:
-            self._ctx.free()
+            context = getattr(self, "_ctx", None)  # missing when the constructor failed after the GL context
+            if context is not None:
+                context.free()
             self._gl.free()
             self._gl = None
 

@@ -67,6 +67,7 @@ class HumanViewer:
         with self._handle.lock():
             self._data.qpos[:] = data.qpos
             self._data.mocap_pos[:] = data.mocap_pos
+            mujoco.mj_forward(sim.model, self._data)  # the poses the viewer draws follow from qpos
         self._handle.sync()
 
     def close(self) -> None:

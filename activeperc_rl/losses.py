@@ -151,8 +151,8 @@ class MetaEvaluationLoss(LossModule):
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``meta_value``
-    (mean of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (``K`` of
-    ``D2``) and ``num_reference_trajectories`` (``K`` of ``D1``).
+    (mean of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (the
+    trajectories of ``D2``) and ``num_reference_trajectories`` (``K``, those of ``D1``).
 
     The three modules are held as they are (not functionalised): ``loss.looker_actor`` is
     ``looker_actor`` itself, and an optimizer over ``looker_actor.parameters()`` trains it.

@@ -1,6 +1,6 @@
 """The networks: a CNN encoder of (image, pan) and the actors and critics built on it.
 
-Every policy reads one agent's observation group (``("mover", "observation")`` or
+Every learned policy reads one agent's observation group (``("mover", "observation")`` or
 ``("looker", "observation")``) and is a TorchRL ``ProbabilisticActor`` over a categorical
 distribution, writing ``(agent, "logits")``, ``(agent, "action")`` and
 ``(agent, "action_log_prob")``. Critics write ``"state_value"``. The mover's actor and critic

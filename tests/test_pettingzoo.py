@@ -124,6 +124,42 @@ def test_rgb_array_map_and_headless_human(monkeypatch, display, why):
     assert len(messages) == 1 and why in messages[0]
 
 
+def test_the_human_viewer_follows_the_robot(monkeypatch):
+    """MuJoCo's passive viewer draws the poses of the data it was given: each frame must recompute them from the
+    copied qpos (a viewer that only copied qpos showed the first pose for ever). A stand-in for the window."""
+    import contextlib
+
+    import mujoco.viewer
+
+    from activeperc_env import viewer
+
+    class Window:
+        syncs = 0
+
+        def lock(self):
+            return contextlib.nullcontext()
+
+        def sync(self):
+            Window.syncs += 1
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(viewer, "_missing_display", lambda: None)
+    monkeypatch.setattr(mujoco.viewer, "launch_passive", lambda model, data: Window())
+    env = activeperc_env.parallel_env(render_mode="human")
+    env.reset(seed=0)
+    shown = env._viewer._data
+    start = shown.xpos.copy()
+    for _ in range(4):
+        env.step({MOVER: 2, LOOKER: 1})
+    assert Window.syncs == 5
+    robot = env.unwrapped.sim.physics_data(0)
+    mujoco.mj_kinematics(env.unwrapped.sim.model, robot)
+    assert np.abs(shown.xpos - start).max() > 0.1 and np.allclose(shown.xpos, robot.xpos)
+    env.close()
+
+
 def test_observations_are_the_callers_own():
     """Changing an observation in place (a user's preprocessing) changes neither the other agent's nor a later one."""
     aec = activeperc_env.env()
