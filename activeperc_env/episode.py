@@ -1,8 +1,9 @@
 """``activeperc-episode``: play one episode with random agents and save what it looked like.
 
-Writes ``OUT/map.png`` (the bird's-eye map at the start), ``OUT/views.png`` (the mover's
-first-person views of the first cycles) and ``OUT/episode.mp4`` (map beside first-person
-view, every cycle), and prints the episode's length and return.
+Writes ``OUT/map.png`` (the bird's-eye map at the start, 320x240), ``OUT/views.png`` (the mover's
+first-person views at the start and after each of the first 7 cycles, side by side) and
+``OUT/episode.mp4`` (map beside first-person view, one frame at the start and one per cycle, at
+``control_hz`` frames per second: simulated time), and prints the episode's length and return.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from activeperc_env.config import EnvConfig
+from activeperc_env.core import MAX_SEED
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, parallel_env
 from activeperc_env.render import side_by_side
 
@@ -23,20 +25,36 @@ STRIP_CYCLES = 8
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="activeperc-episode", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("runs/episode"), help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="layout and action seed")
-    parser.add_argument("--fov", type=float, default=EnvConfig.fov, help="horizontal field of view, degrees")
-    parser.add_argument("--num-obstacles", type=int, default=EnvConfig.num_obstacles)
+    parser = argparse.ArgumentParser(
+        prog="activeperc-episode",
+        description="Play one episode with random agents and write OUT/map.png, OUT/views.png (the first views) "
+        "and OUT/episode.mp4 (map beside view, one frame per cycle).",
+    )
+    parser.add_argument("--out", type=Path, default=Path("runs/episode"), help="output folder (runs/episode)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the layout and of the random actions (0)")
+    parser.add_argument(
+        "--fov", type=float, default=EnvConfig.fov, help=f"horizontal field of view, degrees ({EnvConfig.fov:g})"
+    )
+    parser.add_argument(
+        "--num-obstacles", type=int, default=EnvConfig.num_obstacles, help=f"occluders ({EnvConfig.num_obstacles})"
+    )
     parser.add_argument("--no-video", action="store_true", help="skip episode.mp4")
     args = parser.parse_args(argv)
+    if not 0 <= args.seed <= MAX_SEED:
+        parser.error(f"--seed={args.seed} is invalid: expected an int in [0, 2**63 - 1]")
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {str(args.out)!r} is a file, not a folder")
     try:
         env = parallel_env(render_mode="rgb_array", fov=args.fov, num_obstacles=args.num_obstacles)
     except ValueError as err:
         parser.error(str(err))
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        env.close()
+        parser.error(f"--out {str(args.out)!r} cannot be made: {err.strerror}")
     rng = np.random.default_rng(args.seed)
     obs, _ = env.reset(seed=args.seed)
-    args.out.mkdir(parents=True, exist_ok=True)
     start_map = env.render()
     frames = [side_by_side(start_map, obs[MOVER]["image"])]
     strip = [obs[MOVER]["image"]]

@@ -26,16 +26,17 @@ seconds):
    took than the bare simulator's in the same round (each round's difference and their median: the machine's
    speed drifts over minutes, so only figures timed side by side compare).
 
-It writes a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio, each the median
-over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against N with
-MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV of the RSS samples (``--memory-csv``:
-episodes, rss_mib).
+It writes, only where asked: a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio,
+each the median over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against
+N with MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV of the RSS samples
+(``--memory-csv``: episodes, rss_mib). The committed ones are ``benchmarks/results/env_scaling.csv``,
+``docs/figures/env_scaling.png`` and ``benchmarks/results/env_memory.csv``.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
 
     python benchmarks/env_scaling.py                                   # 5 s per N, 3 rounds, no memory run
     python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --rounds 1 --json
-    python benchmarks/env_scaling.py --num-envs 64 --memory-episodes 10000
+    python benchmarks/env_scaling.py --num-envs 64 --memory-episodes 10000 --memory-csv /tmp/memory.csv
 """
 
 from __future__ import annotations
@@ -55,10 +56,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and pee
 
 import env_speed  # noqa: E402 (needs the path above)
 import peer  # noqa: E402
+from env_speed import at_least  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_NUM_ENVS = (1, 4, 16, 64, 256, 1024)
 GOAL_NUM_ENVS = 64  # the goal is judged at this number of rooms
 GOAL_MULTIPLE = 5.0  # ... which must reach this multiple of MiniWorld's raw steps/s
@@ -89,21 +90,6 @@ class RandomRooms:
     def close(self) -> None:
         """Release the env's simulator."""
         self.env.close()
-
-
-def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callable[[str], int | float]:
-    """An argparse ``type``: converts to ``kind`` and refuses values below ``low`` (or equal, if ``strict``)."""
-
-    def convert(text: str) -> int | float:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be {kind.__name__}, got {text!r}") from None
-        if value < low or (strict and value == low):
-            raise argparse.ArgumentTypeError(f"{name} must be {'>' if strict else '>='} {low:g}, got {text}")
-        return value
-
-    return convert
 
 
 def rss_mib() -> float:
@@ -252,7 +238,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--warmup", type=at_least(float, "warmup", 0), default=1.0, help="untimed seconds before each timing (1)"
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the layouts and the random actions (0)")
+    parser.add_argument(
+        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
+    )
     parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
     parser.add_argument(
         "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of every N, MiniWorld around each (3)"
@@ -267,13 +255,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--memory-rooms", type=at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
     )
-    parser.add_argument(
-        "--csv", type=Path, default=ROOT / "benchmarks/results/env_scaling.csv", help="rates CSV to write"
-    )
-    parser.add_argument("--plot", type=Path, default=ROOT / "docs/figures/env_scaling.png", help="plot to write")
-    parser.add_argument(
-        "--memory-csv", type=Path, default=ROOT / "benchmarks/results/env_memory.csv", help="RSS samples CSV to write"
-    )
+    parser.add_argument("--csv", type=Path, help="write the rates to this CSV (default: none)")
+    parser.add_argument("--plot", type=Path, help="write the plot to this image (default: none)")
+    parser.add_argument("--memory-csv", type=Path, help="write the RSS samples to this CSV (default: none)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     return parser.parse_args(argv)
 
@@ -289,7 +273,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
     print(
         f"timing:  {args.seconds:g} s per N after {args.warmup:g} s warm-up, seed {args.seed}, random actions;"
-        f" {args.rounds} round(s), MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s)" + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
     )
     print()
 
@@ -297,7 +281,8 @@ def main(argv: list[str] | None = None) -> dict:
     memory = None
     if args.memory_episodes:
         memory = measure_memory(args.memory_episodes, args.memory_rooms, args.warmup, args.seed)
-        write_csv(args.memory_csv, ("episodes", "rss_mib"), memory["samples"])
+        if args.memory_csv:
+            write_csv(args.memory_csv, ("episodes", "rss_mib"), memory["samples"])
         print(
             f"memory make_env(num_envs={memory['num_envs']}), {memory['episodes']} episodes in {memory['cycles']}"
             f" cycles: RSS start {memory['start_mib']:.1f} MiB (after warm-up), end {memory['end_mib']:.1f} MiB,"
@@ -308,7 +293,8 @@ def main(argv: list[str] | None = None) -> dict:
             f"memory growth {memory['growth_mib']:+.1f} MiB at the end, {memory['max_growth_mib']:+.1f} MiB at the max:"
             f" {state} (tolerance {FLAT_TOLERANCE:.0%} of the start RSS)"
         )
-        print(f"wrote {args.memory_csv}")
+        if args.memory_csv:
+            print(f"wrote {args.memory_csv}")
         print()
         gc.collect()
 
@@ -377,9 +363,12 @@ def main(argv: list[str] | None = None) -> dict:
         )
 
     rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]
-    write_csv(args.csv, CSV_COLUMNS, rows)
-    plot_scaling(args.plot, rates, peer_rate, machine["usable_cpus"])
-    print(f"wrote {args.csv} and {args.plot}")
+    if args.csv:
+        write_csv(args.csv, CSV_COLUMNS, rows)
+        print(f"wrote {args.csv}")
+    if args.plot:
+        plot_scaling(args.plot, rates, peer_rate, machine["usable_cpus"])
+        print(f"wrote {args.plot}")
 
     report = {
         "machine": machine,

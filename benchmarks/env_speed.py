@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
@@ -269,17 +270,39 @@ def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None):
     return per_round, medians, goals
 
 
+def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callable[[str], int | float]:
+    """An argparse ``type``: converts to ``kind`` and refuses values below ``low`` (or equal, if ``strict``), and
+    infinity and NaN."""
+
+    def convert(text: str) -> int | float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be {kind.__name__}, got {text!r}") from None
+        if not math.isfinite(value) or value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(f"{name} must be {'>' if strict else '>='} {low:g}, got {text}")
+        return value
+
+    return convert
+
+
 def main() -> None:
     """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=5.0, help="timed seconds per measurement (5)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of our figures, MiniWorld timed around each (3)")
+    parser.add_argument(
+        "--seconds", type=at_least(float, "seconds", 0, strict=True), default=5.0, help="timed seconds per figure (5)"
+    )
+    parser.add_argument(
+        "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of our figures, MiniWorld around each (3)"
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    parser.add_argument("--warmup", type=float, default=1.0, help="untimed seconds before each timing (1)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the resets and the random actions (0)")
+    parser.add_argument(
+        "--warmup", type=at_least(float, "warmup", 0), default=1.0, help="untimed seconds before each timing (1)"
+    )
+    parser.add_argument(
+        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the resets and the random actions (0)"
+    )
     args = parser.parse_args()
-    if args.rounds < 1:
-        parser.error(f"--rounds must be >= 1, got {args.rounds}")
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
 

@@ -155,23 +155,47 @@ def main() -> None:
     parser.add_argument(
         "--methods", nargs="+", choices=METHODS, default=list(METHODS), metavar="METHOD", help=f"of {METHODS} (all)"
     )
-    parser.add_argument("--seconds", type=float, default=20.0, help="timed seconds per method and for MiniWorld (20)")
-    parser.add_argument("--num-envs", type=int, default=None, help="rooms per environment (the TrainConfig default)")
     parser.add_argument(
-        "--threads", type=int, default=TrainConfig().torch_threads, help="torch.set_num_threads (default: as training)"
+        "--seconds",
+        type=env_speed.at_least(float, "seconds", 0, strict=True),
+        default=20.0,
+        help="timed seconds per method and for MiniWorld (20)",
+    )
+    parser.add_argument(
+        "--num-envs",
+        type=env_speed.at_least(int, "num_envs", 1),
+        default=None,
+        help="rooms per environment (the TrainConfig default)",
+    )
+    parser.add_argument(
+        "--threads",
+        type=env_speed.at_least(int, "threads", 0),
+        default=TrainConfig().torch_threads,
+        help="torch.set_num_threads (0: torch's default; default: as training)",
     )
     parser.add_argument(
         "--device", choices=DEVICES, default="cpu", help="where the networks run: cpu (default), cuda, or auto"
     )
     parser.add_argument(
-        "--collect-workers", type=int, default=0, help="worker processes per env (TrainConfig.collect_workers, 0)"
+        "--collect-workers",
+        type=env_speed.at_least(int, "collect_workers", 0),
+        default=0,
+        help="worker processes per env (TrainConfig.collect_workers, 0)",
     )
-    parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations before each timing (2)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of the methods, MiniWorld timed around each (3)")
+    parser.add_argument(
+        "--warmup-iters",
+        type=env_speed.at_least(int, "warmup_iters", 0),
+        default=2,
+        help="untimed iterations before each timing (2)",
+    )
+    parser.add_argument(
+        "--rounds",
+        type=env_speed.at_least(int, "rounds", 1),
+        default=3,
+        help="rounds of the methods, MiniWorld timed around each (3)",
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args()
-    if args.rounds < 1:
-        parser.error(f"--rounds must be >= 1, got {args.rounds}")
 
     import torch
 

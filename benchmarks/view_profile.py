@@ -148,6 +148,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     if args.views < 1:
         parser.error(f"--views must be >= 1, got {args.views}")
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl)
 

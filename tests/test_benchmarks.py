@@ -55,10 +55,13 @@ def test_env_scaling_writes_csv_plot_and_memory(env_scaling, tmp_path):
     assert report["goal_met"] is None  # neither MiniWorld nor N=64 was measured
 
 
-def test_env_scaling_times_the_bare_simulator_in_each_round(env_scaling, tmp_path, monkeypatch):
+def test_env_scaling_times_the_bare_simulator_in_each_round(env_scaling, tmp_path, monkeypatch, capsys):
+    """Also: without --csv and --plot it writes nothing (the committed results are never overwritten by default)."""
     monkeypatch.setattr(env_scaling, "GOAL_NUM_ENVS", 2)  # the split's N, small enough for a test
+    monkeypatch.chdir(tmp_path)
     argv = ["--num-envs", "1", "2", "--seconds", "0.2", "--warmup", "0.05", "--no-peer", "--rounds", "2"]
-    report = env_scaling.main([*argv, "--csv", str(tmp_path / "rates.csv"), "--plot", str(tmp_path / "rates.png")])
+    report = env_scaling.main(argv)
+    assert list(tmp_path.iterdir()) == [] and "wrote" not in capsys.readouterr().out
 
     split = report["core_split_s_per_cycle"]
     assert all(split[part] > 0 for part in ("physics", "render", "cycles_per_s"))
@@ -77,6 +80,9 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     with pytest.raises(SystemExit):
         env_scaling.main(["--rounds", "0"])
     assert "rounds must be >= 1, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        env_scaling.main(["--seconds", "nan"])  # it never ended
+    assert "seconds must be > 0, got nan" in capsys.readouterr().err
 
 
 def test_performance_md_quotes_the_committed_scaling_csv():

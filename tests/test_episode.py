@@ -22,9 +22,25 @@ def test_episode_writes_map_views_and_video(tmp_path, capsys):
     assert np.abs(frames[0, :, :320].astype(int) - iio.imread(out / "map.png")).mean() < 10  # lossy video
 
 
-def test_episode_names_a_bad_option(tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("flags", "named"),
+    [
+        (["--fov", "500"], "fov=500"),
+        (["--seed", "-1"], "--seed=-1 is invalid"),
+        (["--seed", str(2**63)], f"--seed={2**63} is invalid"),
+    ],
+)
+def test_episode_names_a_bad_option(tmp_path, capsys, flags, named):
     with pytest.raises(SystemExit) as exit:
-        main(["--out", str(tmp_path / "episode"), "--fov", "500"])
+        main(["--out", str(tmp_path / "episode"), *flags])
     assert exit.value.code == 2
-    assert "fov=500" in capsys.readouterr().err
+    assert named in capsys.readouterr().err
     assert not (tmp_path / "episode").exists()
+
+
+def test_episode_names_an_out_that_is_a_file(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    for out, named in ((tmp_path / "file", "is a file, not a folder"), (tmp_path / "file" / "x", "cannot be made")):
+        with pytest.raises(SystemExit) as exit:
+            main(["--out", str(out)])
+        assert exit.value.code == 2 and named in capsys.readouterr().err
