@@ -54,20 +54,22 @@ def main(argv: list[str] | None = None) -> int:
         env.close()
         parser.error(f"--out {str(args.out)!r} cannot be made: {err.strerror}")
     rng = np.random.default_rng(args.seed)
-    obs, _ = env.reset(seed=args.seed)
-    start_map = env.render()
-    frames = [side_by_side(start_map, obs[MOVER]["image"])]
-    strip = [obs[MOVER]["image"]]
-    total, cycles = 0.0, 0
-    while env.agents:
-        actions = {MOVER: int(rng.integers(3)), LOOKER: int(rng.integers(3))}
-        obs, rewards, *_ = env.step(actions)
-        total += rewards[MOVER]
-        cycles += 1
-        if cycles < STRIP_CYCLES:
-            strip.append(obs[MOVER]["image"])
-        frames.append(side_by_side(env.render(), obs[MOVER]["image"]))
-    env.close()
+    try:
+        obs, _ = env.reset(seed=args.seed)
+        start_map = env.render()
+        frames = [side_by_side(start_map, obs[MOVER]["image"])]
+        strip = [obs[MOVER]["image"]]
+        total, cycles = 0.0, 0
+        while env.agents:
+            actions = {MOVER: int(rng.integers(3)), LOOKER: int(rng.integers(3))}
+            obs, rewards, *_ = env.step(actions)
+            total += rewards[MOVER]
+            cycles += 1
+            if cycles < STRIP_CYCLES:
+                strip.append(obs[MOVER]["image"])
+            frames.append(side_by_side(env.render(), obs[MOVER]["image"]))
+    finally:
+        env.close()
     iio.imwrite(args.out / "map.png", start_map)
     iio.imwrite(args.out / "views.png", np.concatenate(strip, axis=1))
     written = ["map.png", "views.png"]

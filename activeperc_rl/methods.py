@@ -144,14 +144,18 @@ class Method:
             )
         else:
             env = make_env(cfg.num_envs, device=self.device, looker=looker, seed=env_seed, **env_config)
-            collector = Collector(
-                env,
-                policy,
-                frames_per_batch=cfg.num_envs * cfg.rollout_length,
-                total_frames=-1,
-                device=self.device,
-                auto_register_policy_transforms=False,
-            )
+            try:
+                collector = Collector(
+                    env,
+                    policy,
+                    frames_per_batch=cfg.num_envs * cfg.rollout_length,
+                    total_frames=-1,
+                    device=self.device,
+                    auto_register_policy_transforms=False,
+                )
+            except BaseException:
+                env.close()  # its GL context and physics threads, which the collector would have shut down
+                raise
         self.collectors.append(collector)
         self._iterators[id(collector)] = iter(collector)
         return collector

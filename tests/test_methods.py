@@ -251,3 +251,24 @@ def test_ia2c_skips_the_looker_update_when_no_look_of_a_rollout_is_valid():
     finally:
         method.close()
     assert [any(key.startswith("looker/") for key in losses) for losses in logged] == [True, False, True]
+
+
+def test_a_collector_that_fails_to_start_closes_its_env(monkeypatch):
+    """The env made for a collector holds a GL context and physics threads: a failed Collector must not leak them."""
+    from activeperc_rl import methods
+
+    made, original = [], methods.make_env
+
+    def make_env(*args, **kwargs):
+        made.append(original(*args, **kwargs))
+        return made[-1]
+
+    def broken_collector(*args, **kwargs):
+        raise RuntimeError("collector refused")
+
+    monkeypatch.setattr(methods, "make_env", make_env)
+    monkeypatch.setattr(methods, "Collector", broken_collector)
+    method = make_method(TrainConfig(method="fixed_forward", num_envs=2), torch.device("cpu"), start=False)
+    with pytest.raises(RuntimeError, match="collector refused"):
+        method.start()
+    assert len(made) == 1 and made[0].is_closed
