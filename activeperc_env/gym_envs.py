@@ -54,12 +54,35 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
 
 
 class JointEnv(_SingleAgentEnv):
-    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c``.
+    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c`` (``activeperc/Joint-v0``).
 
-    The paper's Joint baseline (and the Curriculum baseline's agent). ``u_m`` is the mover's
-    action (0 turn left, 1 turn right, 2 forward), ``u_c`` the looker's (0 pan left, 1 hold,
-    2 pan right); the look is applied after the move. Observation, reward and episode end are
-    those of :class:`activeperc_env.pettingzoo_env.raw_env`, with the mover's reward.
+    Description:
+        The paper's Joint baseline (and the Curriculum baseline's agent): the room of
+        :class:`activeperc_env.pettingzoo_env.raw_env` with one agent choosing both the move and the look
+        of each cycle. The look is applied after the move.
+
+    Action Space:
+        ``Discrete(9)``: ``3 * u_m + u_c`` with ``u_m`` the move (0 turn left, 1 turn right, 2 forward) and
+        ``u_c`` the look (0 pan left, 1 hold, 2 pan right).
+
+    Observation Space:
+        ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the view after the
+        look and the camera's pan (radians, relative to the heading).
+
+    Rewards:
+        ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which the robot reaches the goal, else 0.
+
+    Starting State:
+        As :class:`~activeperc_env.pettingzoo_env.raw_env`: a seeded layout, the camera facing forward.
+
+    Episode End:
+        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles.
+
+    Arguments:
+        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+
+    Version History:
+        v0: first release.
     """
 
     def __init__(self, render_mode: str | None = None, **config):
@@ -71,10 +94,32 @@ class JointEnv(_SingleAgentEnv):
 
 
 class FixedForwardEnv(_SingleAgentEnv):
-    """The mover alone, its camera fixed forward (the paper's Fixed_Forward baseline).
+    """The mover alone, its camera fixed forward (``activeperc/FixedForward-v0``).
 
-    Action ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward. The pan angle in the
-    observation is always 0.
+    Description:
+        The paper's Fixed_Forward baseline: the room of :class:`activeperc_env.pettingzoo_env.raw_env`
+        with the looker always holding, so the camera never leaves the robot's heading.
+
+    Action Space:
+        ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward.
+
+    Observation Space:
+        ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``; ``pan`` is always 0.
+
+    Rewards:
+        ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which the robot reaches the goal, else 0.
+
+    Starting State:
+        As :class:`~activeperc_env.pettingzoo_env.raw_env`: a seeded layout, the camera facing forward.
+
+    Episode End:
+        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles.
+
+    Arguments:
+        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+
+    Version History:
+        v0: first release.
     """
 
     def __init__(self, render_mode: str | None = None, **config):
