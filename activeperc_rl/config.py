@@ -52,8 +52,9 @@ class TrainConfig:
     learner_threads: int = 0
     """Threads of torch's CPU ops during the updates (0: every CPU this process may use). The environments wait
     while the networks learn, so the updates may use every core; on 2 cores this cut a meta iteration's learning
-    from 725 to 507 ms. The thread count may change float rounding in the updates, so a CPU run repeats exactly
-    with the same learner_threads (with the default networks, 1 and 2 threads gave the same runs in our checks)."""
+    from 725 to 507 ms (docs/training.md). The thread count may change float rounding in the updates, so a CPU
+    run repeats exactly with the same learner_threads (with the default networks, 1 and 2 threads gave the same
+    runs in our checks)."""
     collect_workers: int = 0
     """Worker processes that step each environment's rooms (0: this process steps them). With k > 0, each
     environment (E1 and E2 each) splits its num_envs rooms over k processes that collect at once, each with CPU

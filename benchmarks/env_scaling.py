@@ -32,7 +32,7 @@ N with MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV o
 (``--memory-csv``: episodes, rss_mib). The committed ones are ``benchmarks/results/env_scaling.csv``,
 ``docs/figures/env_scaling.png`` and ``benchmarks/results/env_memory.csv``.
 
-Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
 
     python benchmarks/env_scaling.py                                   # 5 s per N, 3 rounds, no memory run
     python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --rounds 1 --json

@@ -26,7 +26,7 @@ A training frame is one cycle of a room (the mover's move and, in looker mode, t
 while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
 environment loop, as the issues state it.
 
-Run it from the repository root (MiniWorld comes with the ``bench`` extra, ``pip install -e .[bench]``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
 
     python benchmarks/train_speed.py                      # 20 s per method, 3 rounds (about 7 minutes)
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
