@@ -122,9 +122,11 @@ class Method:
         self._optimizer(name, [actor, critic], lr)
         return actor, critic, loss
 
-    def _collector(self, policy, looker=None, seed_offset: int = 0, **env_overrides) -> Collector | ProcessCollector:
+    def _collector(
+        self, policy, looker=None, seed_offset: int = 0, name: str = "collector", **env_overrides
+    ) -> Collector | ProcessCollector:
         """A collector of rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), in this
-        process or split over ``collect_workers`` processes."""
+        process or split over ``collect_workers`` processes (``name``: what their error messages call it)."""
         cfg = self.config
         env_config = dataclasses.asdict(cfg.env) | env_overrides
         env_seed = self.env_seed + seed_offset
@@ -141,6 +143,7 @@ class Method:
                 env_seed=env_seed,
                 torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),
                 device=self.device,
+                name=name,
             )
         else:
             env = make_env(cfg.num_envs, device=self.device, looker=looker, seed=env_seed, **env_config)
@@ -396,9 +399,12 @@ class Meta(_MoverA2C):
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
         e2_seed_offset = 0 if self.config.shared_seeds else 1
-        self.e1 = self._collector(self.actor, looker=self.e1_looker)
+        self.e1 = self._collector(self.actor, looker=self.e1_looker, name="E1's collector")
         self.e2 = self._collector(
-            self.actor, looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon), seed_offset=e2_seed_offset
+            self.actor,
+            looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon),
+            seed_offset=e2_seed_offset,
+            name="E2's collector",
         )
 
     def iterate(self) -> Iteration:

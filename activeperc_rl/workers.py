@@ -79,6 +79,7 @@ class ProcessCollector:
         env_seed: base seed of the rooms' layout streams (as ``make_env(seed=...)``).
         torch_seed: seed of the workers' torch random streams (worker ``k`` adds ``k``).
         device: where the rollouts are returned.
+        name: what error messages call this collector (``"E2's collector"``): "NAME worker k died ...".
     """
 
     def __init__(
@@ -92,11 +93,13 @@ class ProcessCollector:
         env_seed: int,
         torch_seed: int,
         device: torch.device | str = "cpu",
+        name: str = "collector",
     ):
         if not isinstance(workers, int) or not 1 <= workers <= num_envs:
             raise ValueError(f"workers={workers!r} is invalid: expected an int in 1 .. num_envs={num_envs}")
         self.device = torch.device(device)
         self.workers = workers
+        self.name = name
         self._live = (policy, looker)
         self._shared = copy.deepcopy(self._live)  # one copy of both keeps the weights they share shared
         for module in self._shared:
@@ -179,14 +182,14 @@ class ProcessCollector:
         conn = self._conns[k]
         try:
             if timeout is not None and not conn.poll(timeout):
-                raise WorkerError(f"collector worker {k} did not start within {timeout:.0f} s")
+                raise WorkerError(f"{self.name} worker {k} did not start within {timeout:.0f} s")
             kind, payload = conn.recv()
         except (EOFError, ConnectionResetError):
             raise self._died(k) from None
         if kind == "error":
-            raise WorkerError(f"collector worker {k} failed:\n{payload}")
+            raise WorkerError(f"{self.name} worker {k} failed:\n{payload}")
         if kind != expected:
-            raise WorkerError(f"collector worker {k} sent {kind!r} where {expected!r} was expected")
+            raise WorkerError(f"{self.name} worker {k} sent {kind!r} where {expected!r} was expected")
         return payload
 
     def _died(self, k: int) -> WorkerError:
@@ -196,7 +199,7 @@ class ProcessCollector:
         code = process.exitcode
         how = f"killed by {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}"
         hint = " (the kernel's out-of-memory killer sends SIGKILL)" if code == -signal.SIGKILL else ""
-        return WorkerError(f"collector worker {k} died ({how}){hint}")
+        return WorkerError(f"{self.name} worker {k} died ({how}){hint}")
 
 
 def _start_resource_tracker() -> None:

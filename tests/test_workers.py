@@ -179,3 +179,22 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
     assert not survivors(process.pid), "a worker outlived the run"
     target = str(load_checkpoint(out / "checkpoint.pt")["frames"] + 64)
     assert cli.main(["--out", str(out), "--resume", "--frames", target, "--no-progress", "--eval-episodes", "0"]) == 0
+
+
+def test_a_dead_worker_of_meta_names_its_environment():
+    """meta runs E1 and E2, each with its own workers: the message says which one lost a worker."""
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import make_method
+
+    config = TrainConfig(
+        num_envs=2, rollout_length=4, collect_workers=1, channels=(8,), hidden_size=16, env=dataclasses.asdict(SMALL)
+    )
+    method = make_method(config, torch.device("cpu"))
+    try:
+        method.e2._processes[0].kill()
+        method.e2._processes[0].join()
+        with pytest.raises(WorkerError, match=r"E2's collector worker 0 died \(killed by SIGKILL\)"):
+            method.iterate()
+    finally:
+        method.close()
+    assert multiprocessing.active_children() == []
