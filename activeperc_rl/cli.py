@@ -109,7 +109,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``activeperc-train``."""
-    from activeperc_rl.train import train
+    from activeperc_rl.train import TrainingError, train
 
     args = build_parser().parse_args(argv)
     out, named = args.out, None  # named: the default directory this command made, removed if the run never starts
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         print(f"activeperc-train: error: {error}", file=sys.stderr)
         return 2
-    except (WorkerError, OSError) as error:  # a collector process died; the disk is full, read-only, ...
+    except (WorkerError, TrainingError, OSError) as error:  # a worker died; training diverged; the disk is full, ...
         print(f"activeperc-train: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # a second stop signal, or one while the run starts or evaluates

@@ -133,11 +133,15 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         with _interruptible() as interrupted:
             while frames < config.frames and not interrupted():
                 start = time.perf_counter()
+                kept = f"the checkpoint at {saved['frames']} frames is kept"
                 try:
                     step = method.iterate()
                 except WorkerError as error:
-                    kept = f"the checkpoint at {saved['frames']} frames is kept"
                     raise WorkerError(f"{error}; {kept}: continue with --resume --out {out}") from None
+                except ValueError as error:  # e.g. a distribution refusing NaN logits: the learning diverged
+                    raise TrainingError(
+                        f"training failed at iteration {iteration + 1} ({frames} frames): {error}; {kept} in {out}"
+                    ) from error
                 seconds = time.perf_counter() - start
                 frames, iteration, elapsed = frames + step.frames, iteration + 1, elapsed + seconds
                 window.extend(step.returns)
@@ -183,6 +187,10 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 f"({values['episodes']} held-out episodes)"
             )
     return result
+
+
+class TrainingError(RuntimeError):
+    """Training failed after it had started (not a bad option): the message says where and what is kept."""
 
 
 def load_run_config(out: str | Path) -> TrainConfig:

@@ -161,6 +161,33 @@ def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsy
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # the same command again
 
 
+def test_training_that_fails_midway_is_one_line_with_status_1(tmp_path, monkeypatch, capsys):
+    """A ValueError raised by the learning itself (NaN logits after a divergence) is not a bad option: status 1,
+    one line saying where it failed and which checkpoint is kept."""
+    make_method = train_module.make_method
+
+    def diverging(*args, **kwargs):
+        method = make_method(*args, **kwargs)
+        iterate, calls = method.iterate, []
+
+        def iterate_then_fail():
+            calls.append(1)
+            if len(calls) == 3:
+                raise ValueError("Expected parameter logits to satisfy the constraint Real(), but found invalid values")
+            return iterate()
+
+        method.iterate = iterate_then_fail
+        return method
+
+    monkeypatch.setattr(train_module, "make_method", diverging)
+    out = tmp_path / "run"
+    assert cli.main([*TINY, "--out", str(out), "--method", "fixed_forward", "--frames", "640"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("activeperc-train: error: training failed at iteration 3 (64 frames): Expected parameter")
+    assert f"the checkpoint at 0 frames is kept in {out}" in err and "Traceback" not in err
+    assert load_checkpoint(out / "checkpoint.pt")["frames"] == 0
+
+
 def test_an_unwritable_run_directory_is_one_line(tmp_path, capsys):
     (tmp_path / "file").write_text("")
     assert cli.main([*TINY, "--out", str(tmp_path / "file" / "run"), "--frames", "64"]) == 1
