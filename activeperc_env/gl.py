@@ -1,10 +1,11 @@
-"""Choose MuJoCo's OpenGL backend before ``mujoco`` is imported: EGL when no display exists."""
+"""Choose MuJoCo's OpenGL backend before ``mujoco`` is imported: EGL when no usable display exists."""
 
 from __future__ import annotations
 
 import ctypes.util
 import os
 import sys
+import warnings
 
 FORK_HELP = (
     "this process was forked from one that had already rendered, and the GL driver's state does not survive a "
@@ -20,15 +21,30 @@ EGL_HELP = (
 
 
 def choose_backend() -> None:
-    """Set ``MUJOCO_GL=egl`` when it is unset and there is no display; fail clearly without EGL."""
+    """Set ``MUJOCO_GL=egl`` when it is unset and no display can be opened (none named, or a stale ``DISPLAY``
+    as over ssh without X forwarding); fail clearly without EGL."""
     if os.environ.get("MUJOCO_GL") or sys.platform in ("darwin", "win32"):
         return
-    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+    if missing_display() is None:
         return
     if ctypes.util.find_library("EGL") is None:
         raise ImportError(EGL_HELP)
     os.environ["MUJOCO_GL"] = "egl"
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+
+def missing_display() -> str | None:
+    """Why no window can open here (no display named, or the named one cannot be reached), or ``None``."""
+    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    if not display:
+        return "none found (DISPLAY and WAYLAND_DISPLAY are unset)"
+    import glfw  # what MuJoCo opens windows and its default GL contexts with
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", glfw.GLFWError)
+        if not glfw.init():  # a no-op returning True when glfw is already initialised
+            return f"display {display!r} could not be opened"
+    return None
 
 
 _made_contexts = False  # this process, or one it was forked from, has made a GL context

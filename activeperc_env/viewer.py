@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import warnings
 
 import gymnasium
 
 from activeperc_env.core import Simulator
+from activeperc_env.gl import missing_display
 
 RENDER_MODES = ["human", "rgb_array"]
 
@@ -52,7 +52,7 @@ class HumanViewer:
     def show(self, sim: Simulator) -> None:
         """Draw the current state (opens the window on first use)."""
         if self._headless is None:
-            self._headless = _missing_display() or ""
+            self._headless = missing_display() or ""
             if self._headless:
                 message = f"render_mode='human' needs a display; {self._headless}, so nothing is shown"
                 warnings.warn(message, stacklevel=3)
@@ -76,16 +76,3 @@ class HumanViewer:
             self._handle.close()
             self._handle = None
 
-
-def _missing_display() -> str | None:
-    """Why no window can open here (no display named, or the named one cannot be reached), or ``None``."""
-    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    if not display:
-        return "none found (DISPLAY and WAYLAND_DISPLAY are unset)"
-    import glfw  # what MuJoCo's viewer opens its window with; its own failure would end the process
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", glfw.GLFWError)
-        if not glfw.init():
-            return f"display {display!r} could not be opened"
-    return None

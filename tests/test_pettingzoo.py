@@ -145,7 +145,7 @@ def test_the_human_viewer_follows_the_robot(monkeypatch):
         def close(self):
             pass
 
-    monkeypatch.setattr(viewer, "_missing_display", lambda: None)
+    monkeypatch.setattr(viewer, "missing_display", lambda: None)
     monkeypatch.setattr(mujoco.viewer, "launch_passive", lambda model, data: Window())
     env = activeperc_env.parallel_env(render_mode="human")
     env.reset(seed=0)

@@ -1,0 +1,50 @@
+"""The headless backend choice: EGL when no display can be opened, a clear error when EGL is missing."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from activeperc_env import gl
+
+RENDER_ONE_VIEW = """
+import os
+import activeperc_env
+env = activeperc_env.env()
+env.reset(seed=0)
+print(os.environ.get("MUJOCO_GL"), int(env.last()[0]["image"].max()))
+"""
+
+
+def test_a_stale_display_falls_back_to_egl():
+    """DISPLAY set but unreachable (ssh without X forwarding, a container): MuJoCo's default glfw context would
+    fail with an obscure FatalError; the import picks EGL instead and the env renders."""
+    environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    environment |= {"DISPLAY": ":987", "WAYLAND_DISPLAY": ""}
+    out = subprocess.run(
+        [sys.executable, "-c", RENDER_ONE_VIEW], env=environment, capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    backend, brightest = out.stdout.split()
+    assert backend == "egl" and int(brightest) > 0
+
+
+def test_without_a_display_or_egl_the_import_says_what_to_install(monkeypatch):
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: None)
+    with pytest.raises(ImportError, match="apt-get install libegl1 libgl1-mesa-dri"):
+        gl.choose_backend()
+
+
+def test_a_usable_display_or_a_chosen_backend_is_left_alone(monkeypatch):
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.setattr(gl, "missing_display", lambda: None)
+    gl.choose_backend()
+    assert "MUJOCO_GL" not in os.environ
+    monkeypatch.setenv("MUJOCO_GL", "osmesa")
+    monkeypatch.setattr(gl, "missing_display", lambda: "none found")
+    gl.choose_backend()
+    assert os.environ["MUJOCO_GL"] == "osmesa"
