@@ -110,30 +110,31 @@ class ProcessCollector:
         context = mp.get_context("spawn")
         _start_resource_tracker()
         self._conns, self._processes, self._buffers = [], [], []
-        for k in range(workers):
-            spec = _WorkerSpec(
-                index=k,
-                workers=workers,
-                first_room=int(bounds[k]),
-                num_rooms=int(bounds[k + 1] - bounds[k]),
-                rollout_length=rollout_length,
-                env_config=env_config,
-                env_seed=env_seed,
-                torch_seed=torch_seed + k,
-                threads=threads,
-                modules=self._shared,
-            )
-            here, there = context.Pipe()
-            process = context.Process(target=_work, args=(there, spec), daemon=True, name=f"activeperc-collector-{k}")
-            process.start()
-            there.close()
-            self._conns.append(here)
-            self._processes.append(process)
         try:
+            for k in range(workers):
+                spec = _WorkerSpec(
+                    index=k,
+                    workers=workers,
+                    first_room=int(bounds[k]),
+                    num_rooms=int(bounds[k + 1] - bounds[k]),
+                    rollout_length=rollout_length,
+                    env_config=env_config,
+                    env_seed=env_seed,
+                    torch_seed=torch_seed + k,
+                    threads=threads,
+                    modules=self._shared,
+                )
+                here, there = context.Pipe()
+                self._conns.append(here)
+                name = f"activeperc-collector-{k}"
+                process = context.Process(target=_work, args=(there, spec), daemon=True, name=name)
+                process.start()
+                there.close()
+                self._processes.append(process)
             for k in range(workers):
                 self._receive(k, "ready", timeout=START_TIMEOUT_S)
         except BaseException:
-            self.shutdown()  # no worker outlives a failed start
+            self.shutdown()  # no worker outlives a failed start, whether it failed to start or to report ready
             raise
 
     def __iter__(self) -> ProcessCollector:

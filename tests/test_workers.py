@@ -198,3 +198,23 @@ def test_a_dead_worker_of_meta_names_its_environment():
     finally:
         method.close()
     assert multiprocessing.active_children() == []
+
+
+def test_a_worker_that_cannot_be_started_leaves_none_running(monkeypatch):
+    """The second worker's process fails to start (out of processes, say): the first one is stopped too."""
+    import multiprocessing.context
+
+    start, starts = multiprocessing.context.SpawnProcess.start, []
+
+    def start_once(process):
+        starts.append(process.name)
+        if len(starts) == 2:
+            raise OSError("Resource temporarily unavailable")
+        start(process)
+
+    monkeypatch.setattr(multiprocessing.context.SpawnProcess, "start", start_once)
+    policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
+    with pytest.raises(OSError, match="Resource temporarily unavailable"):
+        ProcessCollector(policy, None, dataclasses.asdict(SMALL), 2, 4, 2, env_seed=0, torch_seed=0)
+    assert starts == ["activeperc-collector-0", "activeperc-collector-1"]
+    assert multiprocessing.active_children() == []
