@@ -188,8 +188,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--csv", type=Path, default=None, help="write the results to this CSV file")
     parser.add_argument("--examples", type=Path, default=None, help="write a few example PNGs to this folder")
     args = parser.parse_args(argv)
-    if args.seeds < 1:
-        parser.error("--seeds must be >= 1")
+    for flag, value in (("--seeds", args.seeds), ("--min-pixels", args.min_pixels), ("--batch", args.batch)):
+        if value < 1:
+            parser.error(f"{flag} must be >= 1, got {value}")
 
     seeds = np.arange(args.seeds)
     default_obstacles = EnvConfig().num_obstacles

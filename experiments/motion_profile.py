@@ -59,6 +59,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--random-cycles", type=int, default=1280)
     args = parser.parse_args()
+    if args.cycles < 1:
+        parser.error(f"--cycles must be >= 1, got {args.cycles}")
+    if args.random_cycles < 32:
+        parser.error(f"--random-cycles must be >= 32 (one move in each of the 32 rooms), got {args.random_cycles}")
     for action, name in enumerate(MOVER_ACTIONS):
         steps = profile(action, args.cycles, args.seed)
         print(f"{name:>10}  metres: " + " ".join(f"{d:.3f}" for d, _ in steps))

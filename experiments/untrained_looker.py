@@ -30,6 +30,11 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=20)
     parser.add_argument("--hold-prob", type=float, default=0.0, help="0: PyTorch's default init")
     args = parser.parse_args()
+    for flag, value in (("--seeds", args.seeds), ("--rooms", args.rooms), ("--cycles", args.cycles)):
+        if value < 1:
+            parser.error(f"{flag} must be >= 1, got {value}")
+    if not 0.0 <= args.hold_prob < 1.0:
+        parser.error(f"--hold-prob must be in [0, 1), got {args.hold_prob}")
 
     config = TrainConfig()
     torch.manual_seed(0)  # the random play

@@ -1,0 +1,28 @@
+"""The scripts of experiments/ outside fig1: a bad argument is one line naming it, before any work."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
+
+
+@pytest.mark.parametrize(
+    ("script", "args", "message"),
+    [
+        ("motion_profile.py", ["--cycles", "0"], "--cycles must be >= 1, got 0"),
+        ("motion_profile.py", ["--random-cycles", "0"], "--random-cycles must be >= 32"),
+        ("untrained_looker.py", ["--cycles", "0"], "--cycles must be >= 1, got 0"),
+        ("untrained_looker.py", ["--hold-prob", "1.5"], "--hold-prob must be in [0, 1), got 1.5"),
+        ("goal_visibility.py", ["--min-pixels", "-1"], "--min-pixels must be >= 1, got -1"),
+        ("goal_visibility.py", ["--batch", "0"], "--batch must be >= 1, got 0"),
+    ],
+)
+def test_a_bad_argument_is_named(script, args, message):
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / script), *args], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2, done.stderr
+    assert message in done.stderr and "Traceback" not in done.stderr
