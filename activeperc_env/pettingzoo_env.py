@@ -23,7 +23,9 @@ MOVER, LOOKER = "mover_0", "looker_0"
 class _Adapter(OneRoomRendering):
     """What both PettingZoo envs share: spaces, seeding, rendering over one ``Simulator``."""
 
-    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v0", "is_parallelizable": True}
+    # not "is_parallelizable": the AEC env's looker observes s_bar (after the move, before its look), so PettingZoo's
+    # aec_to_parallel would give a game where the looker acts on another view than the mover; use parallel_env
+    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v0"}
 
     def _setup(self, render_mode: str | None, config: dict) -> None:
         self._setup_rendering(render_mode)
@@ -35,6 +37,7 @@ class _Adapter(OneRoomRendering):
         self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
         self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
         self.state_space = state_space(self.config)
+        self._has_reset = False
 
     def observation_space(self, agent):
         """The observation space of ``agent`` (the same object on every call)."""
@@ -47,7 +50,14 @@ class _Adapter(OneRoomRendering):
     def state(self) -> np.ndarray:
         """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
         heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
+        if not self._has_reset:
+            raise RuntimeError("state() before reset(): call reset() first")
         return self.sim.state()[0]
+
+    def _reset_sim(self, seed: int | None) -> None:
+        self.sim.reset(seeds=None if seed is None else [seed])
+        self._has_reset = True
+        self.agents = list(self.possible_agents)
 
     def _observe_now(self) -> dict:
         return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
@@ -103,8 +113,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> None:
         """Start an episode; ``seed`` fixes its layout (later unseeded resets continue the stream)."""
-        self.sim.reset(seeds=None if seed is None else [seed])
-        self.agents = list(self.possible_agents)
+        self._reset_sim(seed)
         self.rewards = dict.fromkeys(self.agents, 0.0)
         self._cumulative_rewards = dict.fromkeys(self.agents, 0.0)
         self.terminations = dict.fromkeys(self.agents, False)
@@ -162,8 +171,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode; returns ``(observations, infos)``."""
-        self.sim.reset(seeds=None if seed is None else [seed])
-        self.agents = list(self.possible_agents)
+        self._reset_sim(seed)
         obs = self._observe_now()
         if self.render_mode == "human":
             self.render()
@@ -172,7 +180,8 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
     def step(self, actions: dict):
         """One cycle: the mover's action, then the looker's; returns PettingZoo's five dicts."""
         if not self.agents:
-            raise RuntimeError("step() after the episode ended: call reset()")
+            when = "after the episode ended" if self._has_reset else "before reset()"
+            raise RuntimeError(f"step() {when}: call reset()")
         unknown = sorted(set(actions) - set(self.agents))
         missing = sorted(set(self.agents) - set(actions))
         if unknown or missing:

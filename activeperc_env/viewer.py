@@ -49,6 +49,10 @@ class HumanViewer:
         self._data = None
         self._headless = None  # why no window can open, once the first show() has looked
 
+    def __getstate__(self) -> dict:
+        """A copy of the env opens a window of its own at its first render: nothing of this one's is copied."""
+        return {"_handle": None, "_data": None, "_headless": None}
+
     def show(self, sim: Simulator) -> None:
         """Draw the current state (opens the window on first use)."""
         if self._headless is None:

@@ -58,8 +58,9 @@ followed by the reset. Training rooms
 (``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
 evaluation layout never repeats a training layout whatever the base seeds.
 
-The env holds MuJoCo's batched physics and a GL context, which cannot be pickled or copied: give
-``ParallelEnv`` and multi-process collectors a function that builds it (``functools.partial(make_env, ...)``).
+The env can be pickled and ``copy.deepcopy``-ed: a copy steps on exactly as the original (physics state, episode
+counters and seeds) and makes its own GL context. ``ParallelEnv`` and multi-process collectors still do best with a
+function that builds it (``functools.partial(make_env, ...)``): nothing to copy.
 """
 
 from __future__ import annotations

@@ -208,3 +208,26 @@ def test_state_is_the_true_layout_and_the_same_in_both_envs(num_obstacles):
         expected = [*xy, np.cos(heading), np.sin(heading), pan, *sim.goal_xy(), *sim.occluders_xy().ravel(), cycle / 40]
         np.testing.assert_allclose(state, np.array(expected, dtype=np.float32), rtol=0, atol=1e-6)
     assert abs(state[4]) > 0  # the random looks turned the camera
+
+
+def test_state_and_step_before_reset_say_so():
+    env = activeperc_env.parallel_env()
+    with pytest.raises(RuntimeError, match=r"state\(\) before reset\(\)"):
+        env.state()
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        env.step({MOVER: 0, LOOKER: 1})
+    env.reset(seed=0)
+    env.state()
+    with pytest.raises(RuntimeError, match=r"state\(\) before reset\(\)"):
+        activeperc_env.raw_env().state()
+
+
+def test_the_aec_env_is_not_converted_to_another_game():
+    """In the AEC env the looker acts on s_bar, so aec_to_parallel (which needs is_parallelizable) must refuse it:
+    converted, the looker would act on the view before its own last look. parallel_to_aec keeps the game."""
+    from pettingzoo.utils.conversions import aec_to_parallel, parallel_to_aec
+
+    with pytest.raises(AssertionError, match="is_parallelizable"):
+        aec_to_parallel(activeperc_env.raw_env())
+    aec = parallel_to_aec(activeperc_env.parallel_env())
+    api_test(aec, num_cycles=20)
