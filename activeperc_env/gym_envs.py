@@ -25,14 +25,17 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``seed`` fixes the layout, as in the PettingZoo envs."""
+        self.sim.reset(seeds=None if seed is None else [seed])  # first: it checks the seed
         super().reset(seed=seed)
-        self.sim.reset(seeds=None if seed is None else [seed])
         if self.render_mode == "human":
             self.render()
         return self._observe(), {"cycle": 0}
 
     def step(self, action):
         """One cycle: the move, then the look; returns Gymnasium's five values."""
+        if self.sim.done[0]:
+            when = "after the episode ended (terminated or truncated)" if self.sim.cycle[0] else "before reset()"
+            raise RuntimeError(f"step() {when}: call reset()")
         move, look = self._split(action)
         result = self.sim.move(np.array([move]))
         self.sim.look(np.array([look]))

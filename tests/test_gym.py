@@ -48,3 +48,23 @@ def test_info_counts_cycles_and_render_fps_is_the_control_rate():
     assert env.step(2)[4] == {"cycle": 1}
     assert env.metadata["render_fps"] == 4.0
     assert activeperc_env.JointEnv.metadata["render_fps"] == activeperc_env.EnvConfig().control_hz
+
+
+def test_step_outside_an_episode_says_so():
+    env = activeperc_env.gym_envs.JointEnv(max_cycles=2)  # unwrapped: no OrderEnforcing to catch it first
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        env.step(0)
+    env.reset(seed=0)
+    env.step(0)
+    assert env.step(0)[3]  # truncated
+    with pytest.raises(RuntimeError, match=r"step\(\) after the episode ended .*: call reset\(\)"):
+        env.step(0)
+
+
+def test_a_refused_seed_reseeds_nothing():
+    env = gymnasium.make("activeperc/Joint-v0")
+    env.reset(seed=3)
+    before = env.unwrapped.np_random.bit_generator.state
+    with pytest.raises(ValueError, match="seed 9223372036854775808 is invalid"):
+        env.reset(seed=2**63)
+    assert env.unwrapped.np_random.bit_generator.state == before
