@@ -46,9 +46,12 @@ IA2C with its own looker policy). Both agents act on the same ``s``: move, then 
 rendered (PettingZoo ``parallel_env`` semantics). There are no ``("looker", "observation")`` keys.
 
 Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_reset"`` mask, as in
-``step_and_maybe_reset``, ``rollout`` and ``Collector``). Seeding: :meth:`set_seed` gives room ``i``
-its own stream of episode seeds, derived from the base seed and ``i`` only (``first_room + i`` when the rooms
-are split over several envs), so two envs seeded alike
+``step_and_maybe_reset``, ``rollout`` and ``Collector``). A step with TorchRL's ``"_step"`` mask (partial steps,
+as ``rollout(break_when_any_done=False, break_when_all_done=True)`` sends) moves only the rooms it names; the
+others keep their state and report a zero reward and the done flags of their last step.
+
+Seeding: :meth:`set_seed` gives room ``i`` its own stream of episode seeds, derived from the base seed and ``i``
+only (``first_room + i`` when the rooms are split over several envs), so two envs seeded alike
 (E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
 in the same layout; ``episode_seeds`` holds each room's current episode seed. A seed takes effect at each
 room's next reset: seed an env before its first reset (``make_env(seed=...)``), or reset it after seeding. A
@@ -61,6 +64,17 @@ evaluation layout never repeats a training layout whatever the base seeds.
 The env can be pickled and ``copy.deepcopy``-ed: a copy steps on exactly as the original (physics state, episode
 counters and seeds) and makes its own GL context. ``ParallelEnv`` and multi-process collectors still do best with a
 function that builds it (``functools.partial(make_env, ...)``): nothing to copy.
+
+Several of these envs in TorchRL's batched envs: ``ParallelEnv(k, ...).set_seed(s)`` seeds the workers apart
+(TorchRL gives each its own seed), but ``reset(seed=s)`` hands every worker the same ``s``, so with the same
+``first_room`` they play the same layouts (give each worker its own ``first_room``, or use ``set_seed``). In
+looker mode the looker runs where the env runs. In another process (a ``ParallelEnv`` worker, a multi-process
+collector's worker) it is a copy of the module: changes to the weights in the main process do not reach it
+unless you send them (``activeperc-train --collect-workers`` does), and in a ``ParallelEnv`` worker the
+caller's exploration type does not reach it either (it acts by the module's default interaction type, for a
+``ProbabilisticActor`` deterministic); a collector's worker
+steps its env under the collector's exploration type. ``SerialEnv`` and an in-process ``Collector`` run the
+looker itself, under the caller's exploration type.
 """
 
 from __future__ import annotations
@@ -157,6 +171,9 @@ class ActivePerceptionEnv(EnvBase):
         self.num_envs = num_envs
         self.sim = Simulator(config, num_envs=num_envs, nthread=nthread)
         self.episode_seeds = np.zeros(num_envs, dtype=np.int64)
+        # how each room's latest step ended it: a room left out of a partial step reports these again
+        self._terminated = np.zeros(num_envs, dtype=bool)
+        self._truncated = np.zeros(num_envs, dtype=bool)
         self._seed_rngs = [np.random.default_rng() for _ in range(num_envs)]
         self._looker = None
         self._looker_spec = Composite(shape=self.batch_size, device=self.device)
@@ -266,6 +283,7 @@ class ActivePerceptionEnv(EnvBase):
             seeds = np.array([2 * self._seed_rngs[i].integers(2**62) + parity for i in ids], dtype=np.int64)
             self.sim.reset(ids, seeds)
             self.episode_seeds[ids] = seeds
+            self._terminated[ids] = self._truncated[ids] = False
             index = torch.from_numpy(ids)
             image[index] = torch.from_numpy(self.sim.render(ids))
             pan[index] = torch.from_numpy(self.sim.pan(ids))
@@ -277,22 +295,30 @@ class ActivePerceptionEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         n = self.num_envs
-        result = self.sim.move(_to_numpy(tensordict.get((MOVER, "action")), n, MOVER))
+        # TorchRL's partial steps (rollout(break_when_all_done=True), Collector(reset_when_done=False)): only the
+        # rooms of the "_step" mask act; the others keep their state and report a zero reward and their done flags
+        mask = tensordict.get("_step", None)
+        ids = np.arange(n) if mask is None else mask.reshape(n).nonzero().squeeze(-1).cpu().numpy()
+        moves = _to_numpy(tensordict.get((MOVER, "action")), n, MOVER)[ids]
+        result = self.sim.move(moves, ids)
         out = TensorDict(batch_size=self.batch_size, device=self.device)
         if self._looker is None:
-            self.sim.look(_to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER))
+            self.sim.look(_to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER)[ids], ids)
         else:
             record = TensorDict({LOOKER: {"observation": self._observe()}}, batch_size=self.batch_size)
             with torch.no_grad():
                 written = self._looker(record)
             record = (record if written is None else written).get(LOOKER)
-            self.sim.look(_to_numpy(record.get("action"), n, LOOKER))
+            self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
         out.set((MOVER, "observation"), self._observe())
         for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
-            out.set((agent, "reward"), torch.from_numpy(reward).reshape(n, 1).to(self.device, torch.float32))
-        terminated = torch.from_numpy(result.terminated).reshape(n, 1).to(self.device)
-        truncated = torch.from_numpy(result.truncated).reshape(n, 1).to(self.device)
+            rewards = np.zeros(n, dtype=np.float32)
+            rewards[ids] = reward
+            out.set((agent, "reward"), torch.from_numpy(rewards).reshape(n, 1).to(self.device))
+        self._terminated[ids], self._truncated[ids] = result.terminated, result.truncated
+        terminated = torch.from_numpy(self._terminated.copy()).reshape(n, 1).to(self.device)
+        truncated = torch.from_numpy(self._truncated.copy()).reshape(n, 1).to(self.device)
         out.set("terminated", terminated)
         out.set("truncated", truncated)
         out.set("done", terminated | truncated)

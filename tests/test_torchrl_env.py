@@ -140,6 +140,36 @@ def test_rollout_auto_resets_finished_rooms():
     env.close()
 
 
+def test_partial_steps_leave_finished_rooms_alone():
+    """rollout(break_when_all_done=True) steps only the rooms not yet done (TorchRL's "_step" mask): each room's
+    rows up to its end are those of a rollout that steps every room, and the rollout stops when all are done."""
+    n, max_cycles = 4, 12
+    actions = torch.randint(0, 3, (max_cycles, n, 2), generator=torch.Generator().manual_seed(0))
+    actions[:, :2, 0] = -1  # rooms 0-1 drive to the goal: they end at various cycles, rooms 2-3 at max_cycles
+
+    def policy_for(env):
+        rows = iter(actions)
+
+        def policy(td):
+            row = next(rows).clone()
+            row[:2, 0] = torch.tensor([goal_seeking_move(env.sim, i) for i in range(2)])
+            return td.set(("mover", "action"), row[:, 0]).set(("looker", "action"), row[:, 1])
+
+        return policy
+
+    env = make_env(num_envs=n, seed=3, max_cycles=max_cycles, **FAST)
+    every = env.rollout(max_cycles, policy_for(env), break_when_any_done=False)
+    env = make_env(num_envs=n, seed=3, max_cycles=max_cycles, **FAST)
+    partial = env.rollout(100, policy_for(env), break_when_any_done=False, break_when_all_done=True)
+    assert partial.batch_size == (n, max_cycles)
+    ends = every["next", "done"].squeeze(-1).float().argmax(1)  # each room's first done
+    assert len(set(ends.tolist())) > 1, "the rooms should end at different cycles"
+    for i, end in enumerate(ends.tolist()):
+        assert (partial[i, : end + 1] == every[i, : end + 1]).all()
+        assert partial["next", "done"][i, end:].all()
+    env.close()
+
+
 def test_same_seed_same_observations():
     steps, n = 12, 3
     actions = torch.randint(0, 3, (steps, n, 2), generator=torch.Generator().manual_seed(0))
