@@ -1,4 +1,4 @@
-"""The environment installs and runs without the training extra."""
+"""The environment installs and runs without the training extra; the wheel holds what a user needs."""
 
 import subprocess
 import sys
@@ -26,3 +26,38 @@ def test_the_env_imports_nothing_of_the_training_extra():
     script = SCRIPT.replace("{names}", repr(set(TRAIN_ONLY)))
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_the_wheel_holds_every_module_the_scene_and_the_type_marker(tmp_path):
+    """A user's ``pip install`` from a wheel (not our editable install) gets the scene XML, every module and the
+    ``py.typed`` marker (type checkers read our annotations only with it), and the three console scripts."""
+    import shutil
+    import zipfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    source = tmp_path / "source"  # a copy, so that the build leaves nothing in the repository
+    source.mkdir()
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(root / name, source / name)
+    for package in ("activeperc_env", "activeperc_rl"):
+        shutil.copytree(root / package, source / package, ignore=shutil.ignore_patterns("__pycache__"))
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", source, "--no-deps", "-q", "-w", tmp_path],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
+    (wheel,) = tmp_path.glob("activeperc-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    expected = {
+        str(path.relative_to(root))
+        for package in ("activeperc_env", "activeperc_rl")
+        for path in (root / package).rglob("*")
+        if path.is_file() and "__pycache__" not in path.parts
+    }
+    assert {"activeperc_env/assets/scene.xml", "activeperc_env/py.typed", "activeperc_rl/py.typed"} <= expected
+    assert expected <= names, f"missing from the wheel: {sorted(expected - names)}"
+    entry_points = next(n for n in names if n.endswith("entry_points.txt"))
+    scripts = zipfile.ZipFile(wheel).read(entry_points).decode()
+    assert all(f"{s} =" in scripts for s in ("activeperc-train", "activeperc-eval", "activeperc-episode"))
