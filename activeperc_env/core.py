@@ -74,8 +74,19 @@ class Simulator:
             raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs = int(num_envs)
+        self.model = load_model(self.config)
         self.substeps = physics_steps(self.config.control_hz)
-        self._build(min(nthread or usable_cpus(), num_envs))
+        nthread = min(nthread or usable_cpus(), num_envs)
+        self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
+        self._qpos = self._batch.bind("qpos")
+        self._qvel = self._batch.bind("qvel")
+        self._ctrl = self._batch.bind("ctrl")
+        self._mocap_pos = self._batch.bind("mocap_pos")
+        self._ids = _Ids(self.model)
+        self._renderer: TiledRenderer | None = None
+        self._views: np.ndarray | None = None  # the latest first-person view of every room
+        # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
+        self._tiles = np.full(num_envs, -1)
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
         self._rngs = [np.random.default_rng() for _ in range(num_envs)]
@@ -86,38 +97,42 @@ class Simulator:
         self._pan_deltas = math.radians(self.config.pan_step) * np.array([1.0, 0.0, -1.0])
         self._pan_limit = math.radians(self.config.pan_range)
 
-    def _build(self, nthread: int) -> None:
-        """The model, the batched physics (at its default state) and the bindings into it; no renderer yet."""
-        self.model = load_model(self.config)
-        self._batch = mujoco.batch.Batch(self.model, self.num_envs, nthread=nthread)
-        self._qpos = self._batch.bind("qpos")
-        self._qvel = self._batch.bind("qvel")
-        self._ctrl = self._batch.bind("ctrl")
-        self._mocap_pos = self._batch.bind("mocap_pos")
-        self._ids = _Ids(self.model)
-        self._renderer: TiledRenderer | None = None
-        self._views: np.ndarray | None = None  # the latest first-person view of every room
-        # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
-        self._tiles = np.full(self.num_envs, -1)
+    # ----------------------------------------------------------------- state and copies
+    def get_state(self) -> dict:
+        """Everything the rooms' future depends on, as plain arrays: MuJoCo's state rows of every room (solver
+        warm start included), the cycle counters, which rooms are done, and each room's random stream. With
+        :meth:`set_state` on a simulator of the same config and ``num_envs``, it steps on exactly as this one."""
+        return {
+            "physics": self._batch.state.copy(),
+            "cycle": self.cycle.copy(),
+            "done": self.done.copy(),
+            "rngs": [rng.bit_generator.state for rng in self._rngs],
+        }
 
-    # ----------------------------------------------------------------- copies (pickle, copy.deepcopy)
+    def set_state(self, state: dict) -> None:
+        """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another number of rooms or model."""
+        physics = np.asarray(state["physics"])
+        if physics.shape != self._batch.state.shape or len(state["rngs"]) != self.num_envs:
+            raise ValueError(
+                f"a state of physics rows {physics.shape} and {len(state['rngs'])} rooms does not fit this simulator "
+                f"({self._batch.state.shape}, {self.num_envs} rooms)"
+            )
+        self._batch.state[:] = physics
+        self.cycle[:] = state["cycle"]
+        self.done[:] = state["done"]
+        for rng, saved in zip(self._rngs, state["rngs"], strict=True):
+            rng.bit_generator.state = saved
+        self._tiles[:] = -1  # every view is drawn anew
+
     def __getstate__(self) -> dict:
-        """The config, every room's full physics state (MuJoCo's state rows, solver warm start included), the
-        episode counters and the rooms' random streams: a copy steps on exactly as the original. The GL
-        renderer is not copied; the copy makes its own at its first render (the same pixels)."""
-        built = {"model", "_batch", "_qpos", "_qvel", "_ctrl", "_mocap_pos", "_ids", "_renderer", "_views", "_tiles"}
-        state = {key: value for key, value in self.__dict__.items() if key not in built}
-        state["physics"] = self._batch.state.copy()
-        state["nthread"] = self._batch.nthread
-        return state
+        """For pickle and ``copy.deepcopy``: the config and :meth:`get_state`; the GL renderer is not copied, the
+        copy makes its own at its first render (the same pixels)."""
+        return {"config": self.config, "num_envs": self.num_envs, "nthread": self._batch.nthread, **self.get_state()}
 
     def __setstate__(self, state: dict) -> None:
-        """Rebuild the physics from the state :meth:`__getstate__` gave."""
-        state = dict(state)
-        physics, nthread = state.pop("physics"), state.pop("nthread")
-        self.__dict__.update(state)
-        self._build(nthread)
-        self._batch.state[:] = physics
+        """Build the simulator anew and restore the rooms' state."""
+        self.__init__(state["config"], state["num_envs"], state["nthread"])
+        self.set_state(state)
 
     # ----------------------------------------------------------------- episode control
     def reset(self, ids=None, seeds=None) -> None:

@@ -335,6 +335,27 @@ class ActivePerceptionEnv(EnvBase):
             for i in range(self.num_envs)
         ]
 
+    def rooms_state(self) -> dict:
+        """The rooms' state (the simulator's :meth:`~activeperc_env.Simulator.get_state`, the episode seeds and
+        their streams, how each room's last step ended), as plain arrays: with :meth:`load_rooms_state` an env of
+        the same config and ``num_envs`` goes on exactly as this one (what a resumed training run needs)."""
+        return {
+            "sim": self.sim.get_state(),
+            "episode_seeds": self.episode_seeds.copy(),
+            "seed_rngs": [rng.bit_generator.state for rng in self._seed_rngs],
+            "terminated": self._terminated.copy(),
+            "truncated": self._truncated.copy(),
+        }
+
+    def load_rooms_state(self, state: dict) -> None:
+        """Restore what :meth:`rooms_state` returned; ``ValueError`` when it is of another number of rooms."""
+        self.sim.set_state(state["sim"])
+        self.episode_seeds[:] = state["episode_seeds"]
+        for rng, saved in zip(self._seed_rngs, state["seed_rngs"], strict=True):
+            rng.bit_generator.state = saved
+        self._terminated[:] = state["terminated"]
+        self._truncated[:] = state["truncated"]
+
     def close(self, *, raise_if_closed: bool = True) -> None:
         """Release the simulator's renderer."""
         self.sim.close()

@@ -6,9 +6,10 @@ seconds, at the end and on Ctrl-C, SIGTERM or SIGHUP) and, after a finished run,
 the random policy on held-out layouts). One process at a time trains into it (``activeperc_rl.rundir``).
 
 Reproducibility: the same config on CPU gives the same run (networks, sampling and layouts are
-seeded from ``seed``). A resumed run continues the networks, optimizers and random-number state,
-but its rooms restart with fresh layouts (seeded from ``seed`` and the frame count), so it is not
-bit-identical to an uninterrupted run.
+seeded from ``seed``), and so does a run stopped and resumed: the checkpoint holds the networks, optimizers,
+random-number state and where the collectors stand (:meth:`~activeperc_rl.methods.Method.collection_state`).
+With collection workers the resumed rooms start new episodes instead (seeded from ``seed`` and the frame
+count).
 """
 
 from __future__ import annotations
@@ -91,12 +92,17 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     frames, iteration, elapsed = 0, 0, 0.0
     window = deque(maxlen=config.success_window)
     resumed = state is not None
+    # an exact resume puts the rooms where the checkpoint left them; without their state (collection workers now
+    # or then, or a checkpoint from before it was saved) the rooms start new episodes from a stream of their own
+    exact = resumed and state.get("collection") is not None and not config.collect_workers
     if resumed:
         restore_method(method, state, out / CHECKPOINT)
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
         window.extend(state["window"])
-        torch.set_rng_state(state["torch_rng"])
-        method.env_seed = int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
+        if exact:
+            method.env_seed = state["env_seed"]
+        else:
+            method.env_seed = int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
     saved = {"frames": frames}  # the frames of the checkpoint on disk
 
     def checkpoint() -> None:
@@ -110,6 +116,8 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 "time_s": elapsed,
                 "window": list(window),
                 "torch_rng": torch.get_rng_state(),
+                "env_seed": method.env_seed,
+                "collection": method.collection_state(),
             },
         )
         saved["frames"] = frames
@@ -117,6 +125,13 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     with ExitStack() as stack:
         stack.callback(method.close)
         method.start()
+        if exact:
+            try:
+                method.load_collection_state(state["collection"])
+            except ValueError as error:
+                raise ValueError(f"checkpoint {str(out / CHECKPOINT)!r} is unusable: {error}") from error
+        if resumed:
+            torch.set_rng_state(state["torch_rng"])  # after start(), which may draw from it
         # nothing is written before the run has started; from then on the directory holds a checkpoint
         save_yaml(config, out / CONFIG)
         if not resumed:

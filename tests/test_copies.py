@@ -131,3 +131,9 @@ def test_a_copied_viewer_opens_a_window_of_its_own():
     viewer._handle, viewer._headless = object(), ""  # as if its window were open
     twin = copy.deepcopy(viewer)
     assert twin._handle is None and twin._headless is None
+
+
+def test_a_state_of_other_rooms_is_refused():
+    two, three = Simulator(num_envs=2, nthread=1), Simulator(num_envs=3, nthread=1)
+    with pytest.raises(ValueError, match="does not fit this simulator"):
+        three.set_state(two.get_state())

@@ -106,6 +106,28 @@ def test_resume_continues_to_the_new_budget(tmp_path):
     assert frames == sorted(set(frames)) and frames[-1] >= 768
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
+    """Stopped at 200 frames and resumed to 800, a run logs the same rows and ends with the same networks as one
+    run straight to 800: the checkpoint holds the rooms and the collectors' carried step, not only the networks.
+    (The curriculum switches at 80 frames in both: its switch point is a fraction of the first run's budget.)"""
+    tiny = ["--method", method, "--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0"]
+    fractions = ([], [])
+    if method == "curriculum":
+        fractions = (["--curriculum-fraction", "0.1"], ["--curriculum-fraction", "0.4"])
+    whole = run_cli(tmp_path, *tiny, "--frames", "800", *fractions[0], name="whole")
+    cut = run_cli(tmp_path, *tiny, "--frames", "200", *fractions[1], name="cut")
+    assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
+    keep = ("frames", "iteration", "success_rate", "mean_return", "episodes")
+    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in (whole, cut))
+    assert a == b
+    assert sum(int(r["episodes"]) for r in a) > 0  # episodes ended: the rows are not all empty
+    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in (whole, cut))
+    for name in sa:
+        for key, value in sa[name].items():
+            assert torch.equal(value, sb[name][key]), (name, key)
+
+
 def test_a_fresh_run_leaves_an_earlier_runs_files_alone(tmp_path, capsys):
     out = tmp_path / "run"
     out.mkdir()
