@@ -11,7 +11,8 @@ FORK_HELP = (
     "this process was forked from one that had already rendered, and the GL driver's state does not survive a "
     "fork: making a GL context here would hang. Start the process with the 'spawn' method instead, e.g. "
     "multiprocessing.get_context('spawn'), or for Gymnasium's async vector env "
-    "gymnasium.make_vec(..., vectorization_mode='async', vector_kwargs={'context': 'spawn'})."
+    "gymnasium.make_vec(..., vectorization_mode='async', vector_kwargs={'context': 'spawn'}), or for "
+    "Stable-Baselines3 SubprocVecEnv(..., start_method='spawn')."
 )
 EGL_HELP = (
     "activeperc renders headless through EGL, but libEGL was not found. Install it, e.g. "
