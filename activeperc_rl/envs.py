@@ -72,9 +72,8 @@ looker mode the looker runs where the env runs. In another process (a ``Parallel
 collector's worker) it is a copy of the module: changes to the weights in the main process do not reach it
 unless you send them (``activeperc-train --collect-workers`` does), and in a ``ParallelEnv`` worker the
 caller's exploration type does not reach it either (it acts by the module's default interaction type, for a
-``ProbabilisticActor`` deterministic); a collector's worker
-steps its env under the collector's exploration type. ``SerialEnv`` and an in-process ``Collector`` run the
-looker itself, under the caller's exploration type.
+``ProbabilisticActor`` deterministic); a collector's worker steps its env under the collector's exploration
+type. ``SerialEnv`` and an in-process ``Collector`` run the looker itself, under the caller's exploration type.
 """
 
 from __future__ import annotations
@@ -295,8 +294,8 @@ class ActivePerceptionEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         n = self.num_envs
-        # TorchRL's partial steps (rollout(break_when_all_done=True), Collector(reset_when_done=False)): only the
-        # rooms of the "_step" mask act; the others keep their state and report a zero reward and their done flags
+        # TorchRL's partial steps (rollout(break_when_all_done=True)): only the rooms of the "_step" mask act; the
+        # others keep their state and report a zero reward and their done flags
         mask = tensordict.get("_step", None)
         ids = np.arange(n) if mask is None else mask.reshape(n).nonzero().squeeze(-1).cpu().numpy()
         moves = _to_numpy(tensordict.get((MOVER, "action")), n, MOVER)[ids]
