@@ -112,7 +112,8 @@ class Simulator:
     def set_state(self, state: dict) -> None:
         """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another number of rooms or model."""
         physics = np.asarray(state["physics"])
-        if physics.shape != self._batch.state.shape or len(state["rngs"]) != self.num_envs:
+        per_room = {np.shape(state["cycle"]), np.shape(state["done"]), (len(state["rngs"]),)}
+        if physics.shape != self._batch.state.shape or per_room != {(self.num_envs,)}:
             raise ValueError(
                 f"a state of physics rows {physics.shape} and {len(state['rngs'])} rooms does not fit this simulator "
                 f"({self._batch.state.shape}, {self.num_envs} rooms)"

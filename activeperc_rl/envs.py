@@ -348,6 +348,9 @@ class ActivePerceptionEnv(EnvBase):
 
     def load_rooms_state(self, state: dict) -> None:
         """Restore what :meth:`rooms_state` returned; ``ValueError`` when it is of another number of rooms."""
+        for key in ("episode_seeds", "terminated", "truncated"):
+            if np.shape(state[key]) != (self.num_envs,):
+                raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit {self.num_envs} rooms")
         self.sim.set_state(state["sim"])
         self.episode_seeds[:] = state["episode_seeds"]
         for rng, saved in zip(self._seed_rngs, state["seed_rngs"], strict=True):

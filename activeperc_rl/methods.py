@@ -242,10 +242,13 @@ class Method:
         """Put the collectors where :meth:`collection_state` left them; ``ValueError`` when they do not fit."""
         if len(states) != len(self.collectors) or any(isinstance(c, ProcessCollector) for c in self.collectors):
             raise ValueError(f"its {len(states)} collectors' state does not fit this run's {len(self.collectors)}")
-        for collector, state in zip(self.collectors, states, strict=True):
-            collector.env.load_rooms_state(state["rooms"])
-            carrier, device = state["carrier"], collector._carrier.device
-            collector._carrier.update(carrier if device is None else carrier.to(device))
+        try:
+            for collector, state in zip(self.collectors, states, strict=True):
+                collector.env.load_rooms_state(state["rooms"])
+                carrier, device = state["carrier"], collector._carrier.device
+                collector._carrier.update(carrier if device is None else carrier.to(device))
+        except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
+            raise ValueError(f"its collectors' state does not fit this run: {error}") from error
 
     def close(self) -> None:
         """Shut the collectors and their environments down."""
@@ -358,14 +361,18 @@ class Curriculum(Joint):
         super().__init__(config, device)
         self.frames = 0
         self.switch_at = int(config.curriculum_fraction * config.frames)
+        self.phase = self._phase()
+        self._restored_phase: dict | None = None  # a checkpoint's phase, which start() builds once
 
     def _phase(self) -> dict:
         """Env options of the current phase: no obstacles until ``switch_at`` frames."""
         return {"num_obstacles": 0} if self.frames < self.switch_at else {}
 
     def start(self) -> None:
-        """Build the environment of the current phase."""
-        self.phase = self._phase()
+        """Build the environment of the current phase (after :meth:`load_state_dict`, the checkpoint's: a run
+        stopped in the iteration that crossed the switch point switches at its next iteration, as it would have)."""
+        self.phase = self._phase() if self._restored_phase is None else self._restored_phase
+        self._restored_phase = None
         self.collector = self._collector(self.joint_policy, **self.phase)
 
     def iterate(self) -> Iteration:
@@ -380,13 +387,14 @@ class Curriculum(Joint):
         return iteration
 
     def state_dict(self) -> dict:
-        """Networks, optimizer, the frames seen and the switch point (which decide the phase)."""
-        return super().state_dict() | {"frames": self.frames, "switch_at": self.switch_at}
+        """Networks, optimizer, the frames seen, the switch point and the phase of the environment in use."""
+        return super().state_dict() | {"frames": self.frames, "switch_at": self.switch_at, "phase": self.phase}
 
     def load_state_dict(self, state: dict) -> None:
         """Restore networks, optimizer and the phase."""
         super().load_state_dict(state)
         self.frames, self.switch_at = state["frames"], state["switch_at"]
+        self._restored_phase = state.get("phase")  # absent in checkpoints from before 2026-11-24
 
 
 class Meta(_MoverA2C):

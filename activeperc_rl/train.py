@@ -94,7 +94,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     resumed = state is not None
     # an exact resume puts the rooms where the checkpoint left them; without their state (collection workers now
     # or then, or a checkpoint from before it was saved) the rooms start new episodes from a stream of their own
-    exact = resumed and state.get("collection") is not None and not config.collect_workers
+    exact = resumed and state.get("collection") is not None and "env_seed" in state and not config.collect_workers
     if resumed:
         restore_method(method, state, out / CHECKPOINT)
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]

@@ -110,11 +110,12 @@ def test_resume_continues_to_the_new_budget(tmp_path):
 def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     """Stopped at 200 frames and resumed to 800, a run logs the same rows and ends with the same networks as one
     run straight to 800: the checkpoint holds the rooms and the collectors' carried step, not only the networks.
-    (The curriculum switches at 80 frames in both: its switch point is a fraction of the first run's budget.)"""
+    (The curriculum switches at 196 frames in both, its switch point being a fraction of the first run's budget: the
+    stop at 200 falls in the iteration that crosses it, and the resumed run must switch at its next one.)"""
     tiny = ["--method", method, "--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0"]
     fractions = ([], [])
     if method == "curriculum":
-        fractions = (["--curriculum-fraction", "0.1"], ["--curriculum-fraction", "0.4"])
+        fractions = (["--curriculum-fraction", "0.245"], ["--curriculum-fraction", "0.98"])
     whole = run_cli(tmp_path, *tiny, "--frames", "800", *fractions[0], name="whole")
     cut = run_cli(tmp_path, *tiny, "--frames", "200", *fractions[1], name="cut")
     assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
@@ -126,6 +127,28 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     for name in sa:
         for key, value in sa[name].items():
             assert torch.equal(value, sb[name][key]), (name, key)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda c: c[0].pop("carrier"),
+        lambda c: c[0].update(carrier=c[0]["carrier"][:1]),
+        lambda c: c[0]["rooms"].update(episode_seeds=c[0]["rooms"]["episode_seeds"][:1]),
+        lambda c: c.append(c[0]),
+    ],
+    ids=["no carrier", "carrier of one room", "seeds of one room", "a collector too many"],
+)
+def test_a_damaged_collection_state_is_one_line(tmp_path, capsys, damage):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    state = torch.load(out / "checkpoint.pt", weights_only=False)
+    damage(state["collection"])
+    save_checkpoint(out / "checkpoint.pt", state)
+    capsys.readouterr()
+    assert cli.main(["--out", str(out), "--resume", "--frames", "128", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "checkpoint.pt' is unusable: its " in err and "fit" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
 def test_a_fresh_run_leaves_an_earlier_runs_files_alone(tmp_path, capsys):
