@@ -11,6 +11,7 @@ the same episode through every API. One cycle of the paper's section 2 is two ca
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -99,10 +100,11 @@ class Simulator:
 
     # ----------------------------------------------------------------- state and copies
     def get_state(self) -> dict:
-        """Everything the rooms' future depends on, as plain arrays: MuJoCo's state rows of every room (solver
-        warm start included), the cycle counters, which rooms are done, and each room's random stream. With
+        """Everything the rooms' future depends on, as plain data: the config, MuJoCo's state rows of every room
+        (solver warm start included), the cycle counters, which rooms are done, and each room's random stream. With
         :meth:`set_state` on a simulator of the same config and ``num_envs``, it steps on exactly as this one."""
         return {
+            "config": dataclasses.asdict(self.config),
             "physics": self._batch.state.copy(),
             "cycle": self.cycle.copy(),
             "done": self.done.copy(),
@@ -110,7 +112,10 @@ class Simulator:
         }
 
     def set_state(self, state: dict) -> None:
-        """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another number of rooms or model."""
+        """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another config or number of rooms."""
+        if state["config"] != dataclasses.asdict(self.config):
+            differ = sorted(k for k, v in state["config"].items() if getattr(self.config, k, None) != v)
+            raise ValueError(f"a state of rooms of another config (differs in {differ}) does not fit this simulator")
         physics = np.asarray(state["physics"])
         per_room = {np.shape(state["cycle"]), np.shape(state["done"]), (len(state["rngs"]),)}
         if physics.shape != self._batch.state.shape or per_room != {(self.num_envs,)}:
@@ -126,13 +131,13 @@ class Simulator:
         self._tiles[:] = -1  # every view is drawn anew
 
     def __getstate__(self) -> dict:
-        """For pickle and ``copy.deepcopy``: the config and :meth:`get_state`; the GL renderer is not copied, the
-        copy makes its own at its first render (the same pixels)."""
-        return {"config": self.config, "num_envs": self.num_envs, "nthread": self._batch.nthread, **self.get_state()}
+        """For pickle and ``copy.deepcopy``: :meth:`get_state` and the size of the batch; the GL renderer is not
+        copied, the copy makes its own at its first render (the same pixels)."""
+        return {"num_envs": self.num_envs, "nthread": self._batch.nthread, **self.get_state()}
 
     def __setstate__(self, state: dict) -> None:
         """Build the simulator anew and restore the rooms' state."""
-        self.__init__(state["config"], state["num_envs"], state["nthread"])
+        self.__init__(EnvConfig(**state["config"]), state["num_envs"], state["nthread"])
         self.set_state(state)
 
     # ----------------------------------------------------------------- episode control

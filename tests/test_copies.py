@@ -137,3 +137,9 @@ def test_a_state_of_other_rooms_is_refused():
     two, three = Simulator(num_envs=2, nthread=1), Simulator(num_envs=3, nthread=1)
     with pytest.raises(ValueError, match="does not fit this simulator"):
         three.set_state(two.get_state())
+
+
+def test_a_state_of_another_config_is_refused():
+    empty, default = Simulator(EnvConfig(num_obstacles=0), nthread=1), Simulator(nthread=1)
+    with pytest.raises(ValueError, match=r"another config \(differs in \['num_obstacles'\]\)"):
+        default.set_state(empty.get_state())
