@@ -228,22 +228,29 @@ class Method:
             lines = [line.strip() for line in str(error).splitlines() if line.strip()]
             raise ValueError(f"its {k!r} does not fit the config: {' '.join(lines[:2])}") from error
 
-    def collection_state(self) -> list[dict] | None:
+    def collection_state(self) -> list[dict]:
         """Where each collector stands between two rollouts: its env's rooms and the step TorchRL carries over to
-        the next rollout. With :meth:`load_collection_state` after :meth:`start`, a resumed run collects exactly
-        what the uninterrupted run would have. ``None`` with collection workers, whose rooms live in their own
-        processes (a resumed run then starts new episodes)."""
-        if any(isinstance(c, ProcessCollector) for c in self.collectors):
-            return None
-        # _carrier: the Collector's observation of the step to come (torchrl 0.14.1, which we pin)
-        return [{"rooms": c.env.rooms_state(), "carrier": c._carrier.clone()} for c in self.collectors]
+        the next rollout (with collection workers, each worker's, and its torch random state). With
+        :meth:`load_collection_state` after :meth:`start`, a resumed run with as many workers collects exactly
+        what the uninterrupted run would have."""
+        states = []
+        for collector in self.collectors:
+            if isinstance(collector, ProcessCollector):
+                states.append({"workers": collector.state()})
+            else:
+                # _carrier: the Collector's observation of the step to come (torchrl 0.14.1, which we pin)
+                states.append({"rooms": collector.env.rooms_state(), "carrier": collector._carrier.clone()})
+        return states
 
     def load_collection_state(self, states: list[dict]) -> None:
         """Put the collectors where :meth:`collection_state` left them; ``ValueError`` when they do not fit."""
-        if len(states) != len(self.collectors) or any(isinstance(c, ProcessCollector) for c in self.collectors):
+        if len(states) != len(self.collectors):
             raise ValueError(f"its {len(states)} collectors' state does not fit this run's {len(self.collectors)}")
         try:
             for collector, state in zip(self.collectors, states, strict=True):
+                if isinstance(collector, ProcessCollector):
+                    collector.load_state(state["workers"])
+                    continue
                 collector.env.load_rooms_state(state["rooms"])
                 carrier, device = state["carrier"], collector._carrier.device
                 collector._carrier.update(carrier if device is None else carrier.to(device))

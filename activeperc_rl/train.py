@@ -8,8 +8,8 @@ the random policy on held-out layouts). One process at a time trains into it (``
 Reproducibility: the same config on CPU gives the same run (networks, sampling and layouts are
 seeded from ``seed``), and so does a run stopped and resumed: the checkpoint holds the networks, optimizers,
 random-number state and where the collectors stand (:meth:`~activeperc_rl.methods.Method.collection_state`).
-With collection workers the resumed rooms start new episodes instead (seeded from ``seed`` and the frame
-count).
+A resume with another number of collection workers starts the rooms' episodes anew instead (seeded from
+``seed`` and the frame count).
 """
 
 from __future__ import annotations
@@ -92,9 +92,15 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     frames, iteration, elapsed = 0, 0, 0.0
     window = deque(maxlen=config.success_window)
     resumed = state is not None
-    # an exact resume puts the rooms where the checkpoint left them; without their state (collection workers now
-    # or then, or a checkpoint from before it was saved) the rooms start new episodes from a stream of their own
-    exact = resumed and state.get("collection") is not None and "env_seed" in state and not config.collect_workers
+    # an exact resume puts the rooms where the checkpoint left them; without their state (another number of
+    # collection workers, or a checkpoint from before it was saved) the rooms start new episodes from a stream of
+    # their own
+    exact = (
+        resumed
+        and state.get("collection") is not None
+        and "env_seed" in state
+        and state.get("collect_workers", 0) == config.collect_workers
+    )
     if resumed:
         restore_method(method, state, out / CHECKPOINT)
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
@@ -118,6 +124,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 "torch_rng": torch.get_rng_state(),
                 "env_seed": method.env_seed,
                 "collection": method.collection_state(),
+                "collect_workers": config.collect_workers,
             },
         )
         saved["frames"] = frames

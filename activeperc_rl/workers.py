@@ -14,6 +14,9 @@ once, joined along the rooms.
 - Own random streams: each worker seeds torch from ``torch_seed`` and its index, so a run repeats
   itself; its sampled actions differ from an in-process run's, whose actions come from the main
   process's stream.
+- Checkpoints: :meth:`ProcessCollector.state` gathers each worker's rooms, carried step and torch random
+  state between rollouts, and :meth:`ProcessCollector.load_state` puts them back, so that a resumed run with
+  the same number of workers collects what the uninterrupted one would have.
 - Ctrl-C, SIGTERM and SIGHUP reach the main process only (the workers ignore them, even when they are sent
   to the whole process group, as a closing terminal sends SIGHUP), which saves its checkpoint and then shuts
   the workers down; a worker whose main process is gone exits. A worker that dies (killed, out of memory) is a
@@ -143,16 +146,35 @@ class ProcessCollector:
     def __next__(self) -> TensorDictBase:
         """Refresh the workers' weights, collect one rollout in every worker at once, and join them."""
         self._refresh()
-        for k, conn in enumerate(self._conns):
-            try:
-                conn.send("next")
-            except (BrokenPipeError, ConnectionResetError):
-                raise self._died(k) from None
+        self._send_all(lambda k: "next")
         for k in range(self.workers):
             buffer = self._receive(k, "rollout")
             if buffer is not None:  # the first rollout: the worker's shared buffer, reused from then on
                 self._buffers.append(buffer)
         return torch.cat(self._buffers, 0).to(self.device)
+
+    def state(self) -> list[dict]:
+        """Each worker's state between two rollouts: its env's rooms (``rooms_state``), the step its ``Collector``
+        carries to the next rollout, and its torch random state."""
+        self._send_all(lambda k: "state")
+        states = [self._receive(k, "state") for k in range(self.workers)]
+        return [state | {"carrier": state["carrier"].clone()} for state in states]  # out of the shared memory
+
+    def load_state(self, states: list[dict]) -> None:
+        """Put the workers where :meth:`state` left them; ``ValueError`` when the states do not fit them."""
+        if not isinstance(states, list) or len(states) != self.workers:
+            raise ValueError(f"a state of {len(states)} workers does not fit {self.workers}")
+        self._send_all(lambda k: ("load", states[k]))
+        for k in range(self.workers):
+            self._receive(k, "loaded")
+
+    def _send_all(self, message) -> None:
+        """Send ``message(k)`` to every worker ``k``."""
+        for k, conn in enumerate(self._conns):
+            try:
+                conn.send(message(k))
+            except (BrokenPipeError, ConnectionResetError):
+                raise self._died(k) from None
 
     def shutdown(self) -> None:
         """Stop the workers (each closes its env) and wait for them."""
@@ -189,6 +211,8 @@ class ProcessCollector:
             raise self._died(k) from None
         if kind == "error":
             raise WorkerError(f"{self.name} worker {k} failed:\n{payload}")
+        if kind == "unfit":
+            raise ValueError(f"{self.name} worker {k}: {payload}")
         if kind != expected:
             raise WorkerError(f"{self.name} worker {k} sent {kind!r} where {expected!r} was expected")
         return payload
@@ -220,7 +244,8 @@ def _start_resource_tracker() -> None:
 
 
 def _work(conn, spec: _WorkerSpec) -> None:
-    """A worker's life: build the env and collector of its rooms, then answer ``next`` until ``close``."""
+    """A worker's life: build the env and collector of its rooms, then answer ``next``, ``state`` and
+    ``("load", state)`` until ``close``."""
     for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(number, signal.SIG_IGN)
     # llvmpipe draws with as many threads as there are cores unless told; share the cores among the workers. A
@@ -253,7 +278,20 @@ def _work(conn, spec: _WorkerSpec) -> None:
         rollouts = iter(collector)
         buffer = None
         conn.send(("ready", None))
-        while conn.recv() == "next":
+        while (message := conn.recv()) != "close":
+            if message == "state":
+                # _carrier: the Collector's observation of the step to come (torchrl 0.14.1, which we pin)
+                state = {"rooms": env.rooms_state(), "carrier": collector._carrier, "torch_rng": torch.get_rng_state()}
+                conn.send(("state", state))
+                continue
+            if message != "next":
+                try:
+                    _load(env, collector, message[1])
+                except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged checkpoint
+                    conn.send(("unfit", f"its state does not fit: {error}"))
+                else:
+                    conn.send(("loaded", None))
+                continue
             rollout = next(rollouts)
             # trajectory ids stay unique over the joined rollout: worker k's id i becomes i * workers + k
             rollout.set(TRAJ_IDS, rollout.get(TRAJ_IDS) * spec.workers + spec.index)
@@ -274,3 +312,10 @@ def _work(conn, spec: _WorkerSpec) -> None:
         if collector is not None:
             collector.shutdown()
         conn.close()
+
+
+def _load(env, collector, state: dict) -> None:
+    """Put a worker's env, collector and torch stream where :meth:`ProcessCollector.state` found them."""
+    env.load_rooms_state(state["rooms"])
+    collector._carrier.update(state["carrier"])
+    torch.set_rng_state(state["torch_rng"])

@@ -137,11 +137,14 @@ def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_chec
     assert int(read_metrics(out)[-1]["frames"]) >= trained + 64
 
 
-def test_training_with_workers_repeats_itself(tmp_path):
+def test_training_with_workers_repeats_itself_also_across_a_resume(tmp_path):
+    """The same run twice, the second stopped at 100 frames and resumed with as many workers: the checkpoint
+    holds each worker's rooms, carried step and torch random state."""
     runs = [
-        run_cli(tmp_path, "--method", "meta", "--frames", "300", "--collect-workers", "2", name=f"r{i}")
-        for i in range(2)
+        run_cli(tmp_path, "--method", "meta", "--frames", frames, "--collect-workers", "2", name=f"r{i}")
+        for i, frames in enumerate(("300", "100"))
     ]
+    assert cli.main(["--out", str(runs[1]), "--resume", "--frames", "300", "--no-progress"]) == 0
     keep = ("frames", "success_rate", "mean_return", "episodes")
     a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in runs)
     assert a == b and int(a[-1]["frames"]) >= 300
