@@ -113,8 +113,9 @@ class Simulator:
 
     def set_state(self, state: dict) -> None:
         """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another config or number of rooms."""
-        if state["config"] != dataclasses.asdict(self.config):
-            differ = sorted(k for k, v in state["config"].items() if getattr(self.config, k, None) != v)
+        ours = dataclasses.asdict(self.config)
+        if state["config"] != ours:
+            differ = sorted(k for k in ours.keys() | state["config"].keys() if state["config"].get(k) != ours.get(k))
             raise ValueError(f"a state of rooms of another config (differs in {differ}) does not fit this simulator")
         physics = np.asarray(state["physics"])
         per_room = {np.shape(state["cycle"]), np.shape(state["done"]), (len(state["rngs"]),)}

@@ -132,6 +132,9 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     def step(self, action) -> None:
         """Apply the selected agent's action (``None`` for an agent whose episode is over)."""
+        if not self.agents:  # PettingZoo's order-enforcing wrapper (env()) warns and stops this call before here
+            when = "after the episode ended" if self._has_reset else "before reset()"
+            raise RuntimeError(f"step() {when}: call reset()")
         agent = self.agent_selection
         if self.terminations[agent] or self.truncations[agent]:
             self._was_dead_step(action)

@@ -32,6 +32,7 @@ from torchrl.collectors import Collector
 from torchrl.objectives import A2CLoss, ValueEstimators
 
 from activeperc_env.core import usable_cpus
+from activeperc_rl.checkpoint import collector_state, load_collector_state
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.losses import MetaEvaluationLoss
@@ -230,7 +231,8 @@ class Method:
 
     def collection_state(self) -> list[dict]:
         """Where each collector stands between two rollouts: its env's rooms and the step TorchRL carries over to
-        the next rollout (with collection workers, each worker's, and its torch random state). With
+        the next rollout and the trajectory-id counter (with collection workers, each worker's, and its torch random
+        state). With
         :meth:`load_collection_state` after :meth:`start`, a resumed run with as many workers collects exactly
         what the uninterrupted run would have."""
         states = []
@@ -238,8 +240,7 @@ class Method:
             if isinstance(collector, ProcessCollector):
                 states.append({"workers": collector.state()})
             else:
-                # _carrier: the Collector's observation of the step to come (torchrl 0.14.1, which we pin)
-                states.append({"rooms": collector.env.rooms_state(), "carrier": collector._carrier.clone()})
+                states.append(collector_state(collector))
         return states
 
     def load_collection_state(self, states: list[dict]) -> None:
@@ -251,9 +252,7 @@ class Method:
                 if isinstance(collector, ProcessCollector):
                     collector.load_state(state["workers"])
                     continue
-                collector.env.load_rooms_state(state["rooms"])
-                carrier, device = state["carrier"], collector._carrier.device
-                collector._carrier.update(carrier if device is None else carrier.to(device))
+                load_collector_state(collector, state)
         except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
             raise ValueError(f"its collectors' state does not fit this run: {error}") from error
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import sys
 import time
 from collections import deque
 from contextlib import ExitStack, closing, contextmanager
@@ -105,11 +106,14 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         restore_method(method, state, out / CHECKPOINT)
         frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
         window.extend(state["window"])
-        if exact:
-            method.env_seed = state["env_seed"]
-        else:
-            method.env_seed = int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
+        method.env_seed = state["env_seed"] if exact else _fresh_env_seed(config, frames)
     saved = {"frames": frames}  # the frames of the checkpoint on disk
+
+    def collection_state() -> list | None:
+        try:
+            return method.collection_state()
+        except WorkerError:  # a worker died since the last iteration: the next one says so; save what we have
+            return None
 
     def checkpoint() -> None:
         save_checkpoint(
@@ -123,7 +127,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 "window": list(window),
                 "torch_rng": torch.get_rng_state(),
                 "env_seed": method.env_seed,
-                "collection": method.collection_state(),
+                "collection": collection_state(),
                 "collect_workers": config.collect_workers,
             },
         )
@@ -135,8 +139,15 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         if exact:
             try:
                 method.load_collection_state(state["collection"])
-            except ValueError as error:
-                raise ValueError(f"checkpoint {str(out / CHECKPOINT)!r} is unusable: {error}") from error
+            except ValueError as error:  # e.g. another MuJoCo whose state rows differ, or a damaged checkpoint
+                print(
+                    f"activeperc-train: warning: the rooms' state in {out / CHECKPOINT} does not fit this run "
+                    f"({error}); they start new episodes, so this resume is not the uninterrupted run",
+                    file=sys.stderr,
+                )
+                method.close()
+                method.env_seed = _fresh_env_seed(config, frames)
+                method.start()
         if resumed:
             torch.set_rng_state(state["torch_rng"])  # after start(), which may draw from it
         # nothing is written before the run has started; from then on the directory holds a checkpoint
@@ -213,6 +224,12 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
 
 class TrainingError(RuntimeError):
     """Training failed after it had started (not a bad option): the message says where and what is kept."""
+
+
+def _fresh_env_seed(config: TrainConfig, frames: int) -> int:
+    """The layout streams' base seed of a resume that cannot put the rooms where they were: from the seed and
+    the frames, so that the resumed rooms do not replay the episodes the run started with."""
+    return int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
 
 
 def load_run_config(out: str | Path) -> TrainConfig:

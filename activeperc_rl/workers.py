@@ -40,6 +40,7 @@ from tensordict import TensorDictBase
 from torch import nn
 
 from activeperc_env.core import usable_cpus
+from activeperc_rl.checkpoint import collector_state, load_collector_state
 
 TRAJ_IDS = ("collector", "traj_ids")
 START_TIMEOUT_S = 300.0
@@ -163,7 +164,7 @@ class ProcessCollector:
     def load_state(self, states: list[dict]) -> None:
         """Put the workers where :meth:`state` left them; ``ValueError`` when the states do not fit them."""
         if not isinstance(states, list) or len(states) != self.workers:
-            raise ValueError(f"a state of {len(states)} workers does not fit {self.workers}")
+            raise ValueError(f"its workers' states do not fit {self.workers} workers")
         self._send_all(lambda k: ("load", states[k]))
         for k in range(self.workers):
             self._receive(k, "loaded")
@@ -280,13 +281,11 @@ def _work(conn, spec: _WorkerSpec) -> None:
         conn.send(("ready", None))
         while (message := conn.recv()) != "close":
             if message == "state":
-                # _carrier: the Collector's observation of the step to come (torchrl 0.14.1, which we pin)
-                state = {"rooms": env.rooms_state(), "carrier": collector._carrier, "torch_rng": torch.get_rng_state()}
-                conn.send(("state", state))
+                conn.send(("state", collector_state(collector) | {"torch_rng": torch.get_rng_state()}))
                 continue
             if message != "next":
                 try:
-                    _load(env, collector, message[1])
+                    _load(collector, message[1])
                 except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged checkpoint
                     conn.send(("unfit", f"its state does not fit: {error}"))
                 else:
@@ -314,8 +313,7 @@ def _work(conn, spec: _WorkerSpec) -> None:
         conn.close()
 
 
-def _load(env, collector, state: dict) -> None:
-    """Put a worker's env, collector and torch stream where :meth:`ProcessCollector.state` found them."""
-    env.load_rooms_state(state["rooms"])
-    collector._carrier.update(state["carrier"])
+def _load(collector, state: dict) -> None:
+    """Put a worker's collector (and its env) and torch stream where :meth:`ProcessCollector.state` found them."""
+    load_collector_state(collector, state)
     torch.set_rng_state(state["torch_rng"])

@@ -108,20 +108,25 @@ def test_a_copied_gymnasium_env_goes_on_as_the_original(how):
 
 def test_a_copied_torchrl_env_goes_on_as_the_original():
     import torch
+    from torchrl.envs.utils import step_mdp
 
     from activeperc_rl.envs import LOOKER, MOVER, make_env
     from activeperc_rl.models import RandomPolicy
 
     env = make_env(num_envs=2, seed=7, max_cycles=10)
     torch.manual_seed(0)
-    env.rollout(6, RandomPolicy((MOVER, LOOKER)), break_when_any_done=False)
+    start = env.rollout(6, RandomPolicy((MOVER, LOOKER)), break_when_any_done=False)
+    now = step_mdp(start[:, -1])  # the rooms go on from here, mid-episode: no reset
     twin = pickle.loads(pickle.dumps(env))
+    assert same(twin.rooms_state(), env.rooms_state())
     rollouts = []
     for e in (env, twin):
         torch.manual_seed(1)
-        rollouts.append(e.rollout(25, RandomPolicy((MOVER, LOOKER)), break_when_any_done=False))
+        policy = RandomPolicy((MOVER, LOOKER))
+        rollouts.append(e.rollout(25, policy, auto_reset=False, tensordict=now.clone(), break_when_any_done=False))
     assert (rollouts[0] == rollouts[1]).all()
-    assert rollouts[0]["next", "done"].any()  # episodes ended and restarted within the rollout
+    assert not rollouts[0]["next", "done"][:, 0].any()  # the first steps continue the copied episodes
+    assert rollouts[0]["next", "done"].any()  # and episodes ended and restarted within the rollout
     env.close()
     twin.close()
 

@@ -222,6 +222,18 @@ def test_state_and_step_before_reset_say_so():
         activeperc_env.raw_env().state()
 
 
+def test_a_raw_aec_step_outside_an_episode_says_so():
+    env = activeperc_env.raw_env(max_cycles=1)
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        env.step(0)
+    env.reset(seed=0)
+    for action in (0, 1, None, None):  # one cycle, then each agent steps None once
+        env.step(action)
+    assert env.agents == []
+    with pytest.raises(RuntimeError, match=r"step\(\) after the episode ended"):
+        env.step(0)
+
+
 def test_the_aec_env_is_not_converted_to_another_game():
     """In the AEC env the looker acts on s_bar, so aec_to_parallel (which needs is_parallelizable) must refuse it:
     converted, the looker would act on the view before its own last look. parallel_to_aec keeps the game."""
