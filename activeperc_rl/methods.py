@@ -400,7 +400,7 @@ class Curriculum(Joint):
         """Restore networks, optimizer and the phase."""
         super().load_state_dict(state)
         self.frames, self.switch_at = state["frames"], state["switch_at"]
-        self._restored_phase = state.get("phase")  # absent in checkpoints from before 2026-11-24
+        self._restored_phase = state.get("phase")  # absent in older checkpoints: start() then picks the phase
 
 
 class Meta(_MoverA2C):
