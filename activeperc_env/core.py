@@ -206,6 +206,12 @@ class Simulator:
         looker_reward = reward.copy() if self.config.looker_reward == "shared" else np.zeros_like(reward)
         return MoveResult(reward=reward, looker_reward=looker_reward, terminated=success, truncated=truncated)
 
+    def outside_episode(self, call: str, index: int = 0) -> RuntimeError:
+        """The error for ``call`` (e.g. ``"step()"``) made on room ``index`` outside an episode: before its first
+        reset, or after its episode ended (an episode ends in a move, so its cycle count is then above 0)."""
+        when = "after the episode ended (terminated or truncated)" if self.cycle[index] else "before reset()"
+        return RuntimeError(f"{call} {when}: call reset()")
+
     def look(self, actions, ids=None) -> None:
         """The looker's half of a cycle: turn the camera; no time passes, the base stays put.
 

@@ -34,8 +34,7 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
     def step(self, action):
         """One cycle: the move, then the look; returns Gymnasium's five values."""
         if self.sim.done[0]:
-            when = "after the episode ended (terminated or truncated)" if self.sim.cycle[0] else "before reset()"
-            raise RuntimeError(f"step() {when}: call reset()")
+            raise self.sim.outside_episode("step()")
         move, look = self._split(action)
         result = self.sim.move(np.array([move]))
         self.sim.look(np.array([look]))

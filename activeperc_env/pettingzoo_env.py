@@ -37,7 +37,6 @@ class _Adapter(OneRoomRendering):
         self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
         self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
         self.state_space = state_space(self.config)
-        self._has_reset = False
 
     def observation_space(self, agent):
         """The observation space of ``agent`` (the same object on every call)."""
@@ -50,13 +49,12 @@ class _Adapter(OneRoomRendering):
     def state(self) -> np.ndarray:
         """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
         heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
-        if not self._has_reset:
+        if self.sim.done[0] and not self.sim.cycle[0]:  # never reset (an episode that ended has cycles)
             raise RuntimeError("state() before reset(): call reset() first")
         return self.sim.state()[0]
 
     def _reset_sim(self, seed: int | None) -> None:
         self.sim.reset(seeds=None if seed is None else [seed])
-        self._has_reset = True
         self.agents = list(self.possible_agents)
 
     def _observe_now(self) -> dict:
@@ -133,8 +131,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
     def step(self, action) -> None:
         """Apply the selected agent's action (``None`` for an agent whose episode is over)."""
         if not self.agents:  # PettingZoo's order-enforcing wrapper (env()) warns and stops this call before here
-            when = "after the episode ended" if self._has_reset else "before reset()"
-            raise RuntimeError(f"step() {when}: call reset()")
+            raise self.sim.outside_episode("step()")
         agent = self.agent_selection
         if self.terminations[agent] or self.truncations[agent]:
             self._was_dead_step(action)
@@ -183,8 +180,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
     def step(self, actions: dict):
         """One cycle: the mover's action, then the looker's; returns PettingZoo's five dicts."""
         if not self.agents:
-            when = "after the episode ended" if self._has_reset else "before reset()"
-            raise RuntimeError(f"step() {when}: call reset()")
+            raise self.sim.outside_episode("step()")
         unknown = sorted(set(actions) - set(self.agents))
         missing = sorted(set(self.agents) - set(actions))
         if unknown or missing:
