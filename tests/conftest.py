@@ -38,6 +38,27 @@ def drive_to_goal(sim, index: int = 0, max_cycles: int = 200):
     return rewards
 
 
+def assert_same_run(run_a, run_b, columns=("frames", "iteration", "success_rate", "mean_return", "episodes")):
+    """Two training runs logged the same ``metrics.csv`` rows in ``columns`` and ended with the same networks
+    (tensor by tensor); returns the rows."""
+    import csv
+
+    import torch
+
+    from activeperc_rl.checkpoint import load_checkpoint
+
+    rows = []
+    for run in (run_a, run_b):
+        with open(run / "metrics.csv", newline="") as f:
+            rows.append([{k: r[k] for k in columns} for r in csv.DictReader(f)])
+    assert rows[0] == rows[1]
+    sa, sb = (load_checkpoint(run / "checkpoint.pt")["method"]["modules"] for run in (run_a, run_b))
+    for name in sa:
+        for key, value in sa[name].items():
+            assert torch.equal(value, sb[name][key]), (name, key)
+    return rows[0]
+
+
 def assert_same_view(a, b):
     """Equal up to the rasteriser's rounding: a view drawn at another framebuffer offset may
     shift a few pixels' shade by one level, never more."""

@@ -13,7 +13,7 @@ import imageio.v3 as iio
 import pytest
 import torch
 import yaml
-from conftest import PseudoTerminal, default_sighup
+from conftest import PseudoTerminal, assert_same_run, default_sighup
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
@@ -82,13 +82,7 @@ def test_every_method_trains_on_cuda_and_continues_on_the_cpu(tmp_path, method, 
 
 def test_same_seed_same_run(tmp_path):
     runs = [run_cli(tmp_path, "--method", "meta", "--frames", "600", name=f"r{i}") for i in range(2)]
-    keep = ("frames", "success_rate", "mean_return", "episodes")
-    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in runs)
-    assert a == b
-    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in runs)
-    for name in sa:
-        for key, value in sa[name].items():
-            assert torch.equal(value, sb[name][key]), (name, key)
+    assert_same_run(*runs, columns=("frames", "success_rate", "mean_return", "episodes"))
 
 
 def test_existing_run_is_not_overwritten(tmp_path, capsys):
@@ -119,14 +113,8 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     whole = run_cli(tmp_path, *tiny, "--frames", "800", *fractions[0], name="whole")
     cut = run_cli(tmp_path, *tiny, "--frames", "200", *fractions[1], name="cut")
     assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
-    keep = ("frames", "iteration", "success_rate", "mean_return", "episodes")
-    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in (whole, cut))
-    assert a == b
-    assert sum(int(r["episodes"]) for r in a) > 0  # episodes ended: the rows are not all empty
-    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in (whole, cut))
-    for name in sa:
-        for key, value in sa[name].items():
-            assert torch.equal(value, sb[name][key]), (name, key)
+    rows = assert_same_run(whole, cut)
+    assert sum(int(r["episodes"]) for r in rows) > 0  # episodes ended: the rows are not all empty
 
 
 @pytest.mark.parametrize(

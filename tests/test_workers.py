@@ -10,7 +10,7 @@ import time
 
 import pytest
 import torch
-from conftest import default_sighup
+from conftest import assert_same_run, default_sighup
 from tensordict.nn import TensorDictSequential
 from test_train import TINY, read_metrics, run_cli, wait_for_rows
 from torch import nn
@@ -145,13 +145,8 @@ def test_training_with_workers_repeats_itself_also_across_a_resume(tmp_path):
         for i, frames in enumerate(("300", "100"))
     ]
     assert cli.main(["--out", str(runs[1]), "--resume", "--frames", "300", "--no-progress"]) == 0
-    keep = ("frames", "success_rate", "mean_return", "episodes")
-    a, b = ([{k: r[k] for k in keep} for r in read_metrics(out)] for out in runs)
-    assert a == b and int(a[-1]["frames"]) >= 300
-    sa, sb = (load_checkpoint(out / "checkpoint.pt")["method"]["modules"] for out in runs)
-    for name in sa:
-        for key, value in sa[name].items():
-            assert torch.equal(value, sb[name][key]), (name, key)
+    rows = assert_same_run(*runs, columns=("frames", "success_rate", "mean_return", "episodes"))
+    assert int(rows[-1]["frames"]) >= 300
 
 
 @pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["ctrl-c", "sigterm", "sighup"])
