@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import inspect
 import math
 import numbers
+import textwrap
 from dataclasses import dataclass
 
 from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP
@@ -12,6 +15,32 @@ from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP
 LOOKER_REWARDS = ("shared", "none")
 
 
+def field_docs(cls) -> dict[str, str]:
+    """The docstring written under each field of the dataclass ``cls``, read from its source (Python keeps no
+    attribute docstrings at run time)."""
+    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    docs = {}
+    for node, following in zip(body, body[1:], strict=False):
+        is_doc = isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and is_doc:
+            docs[node.target.id] = " ".join(str(following.value.value).split())
+    return docs
+
+
+def with_field_docs(cls):
+    """Class decorator for a config dataclass: add an ``Attributes`` section to its docstring, each field with its
+    default and the docstring under it, so that ``help()`` and IDEs show what each field means."""
+    docs = field_docs(cls)
+    lines = [cls.__doc__.rstrip(), "", "Attributes:"]
+    for f in dataclasses.fields(cls):
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        text = f"{f.name} ({f.type}, default {default!r}): {docs.get(f.name, '')}"
+        lines += textwrap.wrap(text, 100, initial_indent="    ", subsequent_indent="        ", break_on_hyphens=False)
+    cls.__doc__ = "\n".join(lines) + "\n"
+    return cls
+
+
+@with_field_docs
 @dataclass(frozen=True)
 class EnvConfig:
     """Configuration of the active-perception room; invalid values raise ``ValueError``."""
@@ -27,7 +56,8 @@ class EnvConfig:
     goal_distance: float = 3.0
     """Distance along the room (x) between the robot's start and the goal, in metres: each is drawn
     within 0.3 m of -+goal_distance / 2 and their y anywhere but 0.5 m from the side walls (2.5 to 4.6; the room is 6 m
-    long). 4.6 puts them at its two ends; below 3, five or six occluders take many draws to fit."""
+    long). 4.6 puts them at its two ends; below 3, five or six occluders take many draws to fit (six at 2.5: about one
+    draw in 70, some 0.2 s a reset)."""
     max_cycles: int = 150
     """Cycles (one move and one look each) before the episode is truncated."""
     pan_range: float = 120.0

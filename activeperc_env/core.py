@@ -68,11 +68,18 @@ class Simulator:
         config: the environment configuration (defaults when ``None``).
         num_envs: number of rooms N.
         nthread: physics threads (``mujoco.batch.Batch``); 0 uses every core.
+
+    Every room must be reset before it is stepped, looked at or observed: before its first :meth:`reset` it holds
+    no episode, and those calls raise ``RuntimeError``.
     """
 
     def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, nthread: int = 0):
+        if config is not None and not isinstance(config, EnvConfig):
+            raise TypeError(f"config={config!r} is invalid: expected an EnvConfig (EnvConfig(**options)) or None")
         if not is_int(num_envs) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
+        if not is_int(nthread) or nthread < 0:
+            raise ValueError(f"nthread={nthread!r} is invalid: expected an int >= 0 (0: every core)")
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs = int(num_envs)
         self.model = load_model(self.config)
@@ -90,6 +97,7 @@ class Simulator:
         self._tiles = np.full(num_envs, -1)
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
+        self._all_started = False  # whether every room has had its first reset (see require_started)
         self._rngs = [np.random.default_rng() for _ in range(num_envs)]
         wheel = self.config.forward_speed / names.WHEEL_RADIUS
         turn = math.radians(self.config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
@@ -130,6 +138,7 @@ class Simulator:
         for rng, saved in zip(self._rngs, state["rngs"], strict=True):
             rng.bit_generator.state = saved
         self._tiles[:] = -1  # every view is drawn anew
+        self._all_started = bool(self.started().all())
 
     def __getstate__(self) -> dict:
         """For pickle and ``copy.deepcopy``: :meth:`get_state` and the size of the batch; the GL renderer is not
@@ -174,6 +183,22 @@ class Simulator:
         self.cycle[ids] = 0
         self.done[ids] = False
         self._tiles[ids] = -1
+        self._all_started = self._all_started or bool(self.started().all())
+
+    def started(self, ids=None) -> np.ndarray:
+        """Whether each room of ``ids`` (all when ``None``) has been reset at least once: (n,) bool."""
+        ids = self._as_ids(ids)
+        return ~(self.done[ids] & (self.cycle[ids] == 0))  # an episode that ended has cycles
+
+    def require_started(self, call: str, ids=None) -> None:
+        """Raise ``RuntimeError`` naming ``call`` (e.g. ``"render()"``) when a room of ``ids`` was never reset."""
+        if self._all_started:
+            return
+        ids = self._as_ids(ids)
+        never = ids[~self.started(ids)]
+        if never.size:
+            rooms = f" of rooms {never.tolist()}" if self.num_envs > 1 else ""
+            raise RuntimeError(f"{call} before reset(){rooms}: call reset() first")
 
     def move(self, actions, ids=None) -> MoveResult:
         """The mover's half of a cycle: drive the wheels for one control period.
@@ -184,6 +209,7 @@ class Simulator:
         """
         ids = self._as_ids(ids)
         actions = _check_actions(actions, ids, MOVER_ACTIONS, "mover")
+        self.require_started("move()", ids)
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
         ctrl = self._ctrl[ids]
@@ -221,6 +247,7 @@ class Simulator:
         """
         ids = self._as_ids(ids)
         actions = _check_actions(actions, ids, LOOKER_ACTIONS, "looker")
+        self.require_started("look()", ids)
         before = self._qpos[ids, self._ids.pan]
         pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
         self._tiles[ids[pan != before]] = -1  # a hold, or a pan against the limit, leaves the view as it was
@@ -239,6 +266,7 @@ class Simulator:
         only for the rooms whose camera turned.
         """
         ids = self._as_ids(ids)
+        self.require_started("render()", ids)
         per_pass = self.renderer.views_per_pass
         tiles = np.arange(len(ids)) % per_pass  # where each view is drawn in the offscreen buffer
         if self._views is None:
@@ -265,6 +293,7 @@ class Simulator:
     def pan(self, ids=None) -> np.ndarray:
         """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""
         ids = self._as_ids(ids)
+        self.require_started("pan()", ids)
         return self._qpos[ids, self._ids.pan : self._ids.pan + 1].astype(np.float32)
 
     def state(self, ids=None) -> np.ndarray:
@@ -275,6 +304,7 @@ class Simulator:
         Its bounds are :func:`activeperc_env.spaces.state_space`.
         """
         ids = self._as_ids(ids)
+        self.require_started("state()", ids)
         qpos, mocap = self._qpos[ids], self._mocap_pos[ids]
         r = self._ids.root
         heading = 2 * np.arctan2(qpos[:, r + 6], qpos[:, r + 3])
@@ -292,6 +322,7 @@ class Simulator:
 
     def render_map(self, index: int = 0) -> np.ndarray:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
+        self.require_started("render_map()", index)
         return self.renderer.render_map(
             self._qpos[index], self._mocap_pos[index], self.config.fov
         )
@@ -383,7 +414,7 @@ def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: s
         return np.zeros(0, dtype=np.int64)
     if arr.shape == () and len(ids) == 1:
         arr = arr.reshape(1)
-    if arr.shape != ids.shape or not (np.issubdtype(arr.dtype, np.integer) or arr.dtype == bool):
+    if arr.shape != ids.shape or not np.issubdtype(arr.dtype, np.integer):
         raise ValueError(
             f"{agent} actions {actions!r} invalid: expected {len(ids)} int(s) in Discrete({len(meanings)}) {meanings}"
         )

@@ -24,9 +24,9 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
         self.observation_space = observation_space(self.config)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Start an episode; ``seed`` fixes the layout, as in the PettingZoo envs."""
+        """Start an episode; ``seed`` fixes the layout, as in the PettingZoo envs (``options`` are ignored)."""
         self.sim.reset(seeds=None if seed is None else [seed])  # first: it checks the seed
-        super().reset(seed=seed)
+        super().reset(seed=None if seed is None else int(seed))  # Gymnasium takes Python ints only
         if self.render_mode == "human":
             self.render()
         return self._observe(), {"cycle": 0}

@@ -57,8 +57,6 @@ class _SingleAgentVectorEnv(VectorEnv):
         except ValueError:
             modes = [mode.value for mode in AutoresetMode]
             raise ValueError(f"autoreset_mode={autoreset_mode!r} is invalid: expected one of {modes}") from None
-        if not is_int(nthread) or nthread < 0:
-            raise ValueError(f"nthread={nthread!r} is invalid: expected an int >= 0")
         if max_episode_steps is not None and (not is_int(max_episode_steps) or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps={max_episode_steps!r} is invalid: expected None or an int >= 1")
         self.max_episode_steps = max_episode_steps
@@ -73,7 +71,6 @@ class _SingleAgentVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)  # rooms whose episode ended at the last step
-        self._started = False  # reset() was called
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Start episodes in every room, or in those of ``options["reset_mask"]``.
@@ -86,10 +83,9 @@ class _SingleAgentVectorEnv(VectorEnv):
         """
         seeds = self._seeds(seed)
         mask = self._reset_mask(options)
-        if not self._started and not mask.all():
+        if not self.sim.started().all() and not mask.all():
             raise ResetNeeded("the first reset() must start every room: options['reset_mask'] is for later resets")
         super().reset(seed=int(seed) if is_int(seed) else None)
-        self._started = True
         ids = np.flatnonzero(mask)
         seeded = np.array([seeds[i] is not None for i in ids], dtype=bool)
         if seeded.any():
@@ -105,7 +101,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         Under ``NEXT_STEP`` a room whose episode ended at the previous step is reset instead (reward 0,
         not terminated, not truncated, ``info["cycle"]`` 0), as ``SyncVectorEnv`` does.
         """
-        if not self._started:
+        if not self.sim.started().all():
             raise ResetNeeded("step() before reset(): call reset() first")
         actions = self._check_actions(actions)
         moves, looks = self._split(actions)
@@ -139,7 +135,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         """``rgb_array``: one (240, 320, 3) bird's-eye map per room, as ``SyncVectorEnv`` gives; else ``None``."""
         if self.render_mode != "rgb_array":
             return None
-        if not self._started:
+        if not self.sim.started().all():
             raise ResetNeeded("render() before reset(): call reset() first")
         return tuple(self.sim.render_map(i) for i in range(self.num_envs))
 

@@ -49,8 +49,7 @@ class _Adapter(OneRoomRendering):
     def state(self) -> np.ndarray:
         """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
         heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
-        if self.sim.done[0] and not self.sim.cycle[0]:  # never reset (an episode that ended has cycles)
-            raise RuntimeError("state() before reset(): call reset() first")
+        self.sim.require_started("state()")
         return self.sim.state()[0]
 
     def _reset_sim(self, seed: int | None) -> None:
@@ -110,7 +109,8 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         self.agents = []
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> None:
-        """Start an episode; ``seed`` fixes its layout (later unseeded resets continue the stream)."""
+        """Start an episode; ``seed`` fixes its layout (later unseeded resets continue the stream); ``options`` are
+        ignored."""
         self._reset_sim(seed)
         self.rewards = dict.fromkeys(self.agents, 0.0)
         self._cumulative_rewards = dict.fromkeys(self.agents, 0.0)
@@ -126,7 +126,14 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     def observe(self, agent):
         """The latest observation of ``agent`` (a copy: changing it changes nothing the env keeps)."""
-        return _copy(self._obs[self._known(agent)])
+        agent = self._known(agent)
+        self.sim.require_started("observe()")
+        return _copy(self._obs[agent])
+
+    def last(self, observe: bool = True):
+        """PettingZoo's ``last()``: the selected agent's observation, reward, termination, truncation and info."""
+        self.sim.require_started("last()")
+        return super().last(observe)
 
     def step(self, action) -> None:
         """Apply the selected agent's action (``None`` for an agent whose episode is over)."""
@@ -170,7 +177,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
         self.agents = []
 
     def reset(self, seed: int | None = None, options: dict | None = None):
-        """Start an episode; returns ``(observations, infos)``."""
+        """Start an episode; returns ``(observations, infos)`` (``options`` are ignored)."""
         self._reset_sim(seed)
         obs = self._observe_now()
         if self.render_mode == "human":

@@ -29,6 +29,7 @@ class OneRoomRendering:
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
             return None
+        self.sim.require_started("render()")
         if self.render_mode == "rgb_array":
             return self.sim.render_map(0)
         self._viewer.show(self.sim)

@@ -10,15 +10,13 @@ base and only the options in :data:`~activeperc_rl.checkpoint.RESUMABLE` may cha
 from __future__ import annotations
 
 import argparse
-import ast
 import dataclasses
-import inspect
 import sys
 import time
 from pathlib import Path
 
 from activeperc_env import EnvConfig
-from activeperc_env.config import LOOKER_REWARDS
+from activeperc_env.config import LOOKER_REWARDS, field_docs
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml, whole_number
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
@@ -32,18 +30,6 @@ CHOICES = {
     "e1_looks": E1_LOOKS,
     "looker_reward": LOOKER_REWARDS,
 }
-
-
-def field_docs(cls) -> dict[str, str]:
-    """The docstring written under each field of the dataclass ``cls`` (read from its source)."""
-    tree = ast.parse(inspect.getsource(cls))
-    body = tree.body[0].body
-    docs = {}
-    for node, following in zip(body, body[1:], strict=False):
-        is_doc = isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
-        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and is_doc:
-            docs[node.target.id] = " ".join(str(following.value.value).split())
-    return docs
 
 
 def _add_fields(group, cls, skip=()) -> None:

@@ -20,7 +20,7 @@ from pathlib import Path
 import yaml
 
 from activeperc_env import EnvConfig
-from activeperc_env.config import is_int, is_number, normalize_numbers
+from activeperc_env.config import is_int, is_number, normalize_numbers, with_field_docs
 from activeperc_env.core import MAX_SEED
 from activeperc_rl.atomic import atomic_path
 
@@ -30,6 +30,7 @@ MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
 
 
+@with_field_docs
 @dataclass(frozen=True)
 class TrainConfig:
     """Configuration of one training run; invalid values raise ``ValueError`` naming the field."""

@@ -1,10 +1,12 @@
 """Invalid configuration values are refused with a message that names them."""
 
+import pydoc
+
 import numpy as np
 import pytest
 
 import activeperc_env
-from activeperc_env.config import EnvConfig
+from activeperc_env.config import EnvConfig, field_docs
 
 
 @pytest.mark.parametrize(
@@ -61,3 +63,14 @@ def test_numpy_numbers_become_python_numbers():
     assert (config.width, config.fov, config.max_cycles, config.pan_step) == (80, 100.0, 12, 15.0)
     assert type(config.width) is int and type(config.fov) is float and type(config.pan_step) is float
     assert activeperc_env.Simulator(config, num_envs=np.int64(2)).num_envs == 2
+
+
+def test_help_shows_every_field_with_its_default_and_meaning():
+    from activeperc_rl.config import TrainConfig
+
+    for cls in (EnvConfig, TrainConfig):
+        text = " ".join(pydoc.render_doc(cls, renderer=pydoc.plaintext).replace("|", " ").split())
+        for name, doc in field_docs(cls).items():
+            assert f"{name} (" in text and f"default {getattr(cls(), name)!r}" in text, name
+            assert doc in text, name
+    assert "Horizontal field of view of the robot's camera" in EnvConfig.__doc__

@@ -153,7 +153,7 @@ def test_unseeded_resets_continue_the_seeded_stream():
     assert not np.array_equal(a.goal_xy(), c.goal_xy())
 
 
-@pytest.mark.parametrize("bad", [3, -1, [0, 1], 1.5, "left"])
+@pytest.mark.parametrize("bad", [3, -1, [0, 1], 1.5, "left", True])
 def test_bad_actions_name_the_agent_and_its_space(bad):
     sim = Simulator()
     sim.reset(seeds=[0])
@@ -163,9 +163,14 @@ def test_bad_actions_name_the_agent_and_its_space(bad):
         sim.look(np.array(bad) if not isinstance(bad, str) else bad)
 
 
-def test_bad_num_envs_and_ids_are_named():
+def test_bad_num_envs_nthread_config_and_ids_are_named():
     with pytest.raises(ValueError, match="num_envs=0"):
         Simulator(num_envs=0)
+    for nthread in (-1, 1.5, None):
+        with pytest.raises(ValueError, match=f"nthread={nthread}"):
+            Simulator(num_envs=2, nthread=nthread)
+    with pytest.raises(TypeError, match=r"config=\{'fov': 100\} is invalid: expected an EnvConfig"):
+        Simulator({"fov": 100})
     sim = Simulator(num_envs=2)
     with pytest.raises(ValueError, match=r"\[5\]"):
         sim.reset(ids=[5])
@@ -184,6 +189,27 @@ def test_bad_seeds_are_named_by_every_api(seed):
             gymnasium.make("activeperc/Joint-v0").reset(seed=seed)
     with pytest.raises(ValueError, match=r"2 ints, one per reset room"):
         Simulator(num_envs=2).reset(seeds=[0, 1, 2])
+
+
+def test_rooms_never_reset_are_refused_by_name():
+    sim = Simulator(num_envs=3)
+    for call in (lambda: sim.move([0, 0, 0]), lambda: sim.look([0, 0, 0]), sim.render, sim.pan, sim.state):
+        with pytest.raises(RuntimeError, match=r"before reset\(\) of rooms \[0, 1, 2\]: call reset\(\)"):
+            call()
+    with pytest.raises(RuntimeError, match=r"render_map\(\) before reset\(\) of rooms \[2\]"):
+        sim.render_map(2)
+    sim.reset([0, 1], seeds=[0, 1])
+    sim.render([0, 1])
+    with pytest.raises(RuntimeError, match=r"render\(\) before reset\(\) of rooms \[2\]"):
+        sim.render()
+    sim.reset([2])
+    assert sim.started().all()
+    sim.move([2, 2, 2])
+    copy = Simulator(num_envs=3)
+    copy.set_state(sim.get_state())
+    copy.render()  # a restored state carries which rooms have started
+    with pytest.raises(RuntimeError, match=r"^move\(\) before reset\(\): call reset\(\) first$"):
+        Simulator().move([0])
 
 
 def test_occluders_in_use_and_parked():

@@ -61,6 +61,21 @@ def test_step_outside_an_episode_says_so():
         env.step(0)
 
 
+def test_render_before_reset_says_so():
+    env = activeperc_env.gym_envs.JointEnv(render_mode="rgb_array")
+    with pytest.raises(RuntimeError, match=r"render\(\) before reset\(\)"):
+        env.render()
+    env.reset(seed=0)
+    assert env.render().shape == (240, 320, 3)
+
+
+def test_numpy_seeds_are_seeds():
+    env = gymnasium.make("activeperc/Joint-v0")
+    obs, _ = env.reset(seed=np.int64(5))
+    assert env.unwrapped.np_random_seed == 5
+    np.testing.assert_array_equal(obs["image"], gymnasium.make("activeperc/Joint-v0").reset(seed=5)[0]["image"])
+
+
 def test_a_refused_seed_reseeds_nothing():
     env = gymnasium.make("activeperc/Joint-v0")
     env.reset(seed=3)

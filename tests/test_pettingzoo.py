@@ -222,6 +222,19 @@ def test_state_and_step_before_reset_say_so():
         activeperc_env.raw_env().state()
 
 
+@pytest.mark.parametrize("make", [activeperc_env.raw_env, activeperc_env.parallel_env])
+def test_render_last_and_observe_before_reset_say_so(make):
+    env = make(render_mode="rgb_array")
+    calls = {"render": env.render}
+    if make is activeperc_env.raw_env:
+        calls |= {"last": env.last, "observe": lambda: env.observe(MOVER)}
+    for name, call in calls.items():
+        with pytest.raises(RuntimeError, match=rf"{name}\(\) before reset\(\): call reset\(\) first"):
+            call()
+    env.reset(seed=0)
+    assert all(call() is not None for call in calls.values())
+
+
 def test_a_raw_aec_step_outside_an_episode_says_so():
     env = activeperc_env.raw_env(max_cycles=1)
     with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):

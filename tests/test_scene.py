@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from activeperc_env import core, names
+from activeperc_env import layout as layouts
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import load_model
 from activeperc_env.layout import LINE_OFFSET, SIDE_OFFSET, X_JITTER, sample_layout
@@ -75,6 +76,16 @@ def test_layouts_follow_the_documented_placement(goal_distance):
                 assert np.all((offsets[1:] >= SIDE_OFFSET[0] - 1e-9) & (offsets[1:] <= SIDE_OFFSET[1] + 1e-9))
             inside = np.abs(layout.occluders_xy) < [names.ROOM_HALF_X, names.ROOM_HALF_Y]
             assert inside.all()
+
+
+def test_the_hardest_config_never_runs_out_of_draws():
+    """Every valid config must reset: with six occluders at the shortest goal distance about one draw in 70 fits, and
+    the chance that all MAX_TRIES draws of a reset fail must be negligible (it was 3 in a million at 1,000)."""
+    rng = np.random.default_rng(0)
+    draws = 700
+    fitted = sum(layouts._draw(rng, len(names.OCCLUDER_BODIES), 2.5) is not None for _ in range(draws))
+    assert fitted > 0
+    assert (1 - fitted / draws) ** layouts.MAX_TRIES < 1e-12
 
 
 def test_midphase_off_changes_no_trajectory(monkeypatch):
