@@ -55,9 +55,18 @@ def _parser_type(default):
     return whole_number if isinstance(default, int) else type(default)
 
 
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose errors are one line, as every other error of the console scripts (argparse prints the
+    usage of every flag first; that is what ``--help`` is for)."""
+
+    def error(self, message: str):
+        """Print ``PROG: error: MESSAGE`` and a pointer to ``--help``, and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``activeperc-train`` argument parser."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="activeperc-train",
         description="Train the mover and the looker (the paper's meta-evaluation or a baseline) on the "
         "active-perception rooms. With no arguments: the meta method on the default preset.",
@@ -85,7 +94,8 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             raise ValueError("--resume takes the run's own config.yaml; drop --config")
         return load_run_config(args.out).replace(**flags)
     values = load_yaml(args.config) if args.config else {}
-    env = values.pop("env", None) or {}
+    env = values.pop("env", None)
+    env = {} if env is None else env  # "env:" with nothing under it
     if not isinstance(env, dict):
         raise ValueError(f"'env' in {args.config!r} must be a mapping of environment options, got {env!r}")
     env = env | {k: v for k, v in flags.items() if k in env_names}
@@ -106,7 +116,6 @@ def main(argv: list[str] | None = None) -> int:
             if out is None:
                 stem = Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
                 out = named = str(new_run_dir(stem))
-            print(f"activeperc-train: {config.method} for {config.frames} frames -> {out}", flush=True)
             train(config, out, resume=args.resume, progress=not args.no_progress)
             named = None
     except ValueError as error:

@@ -219,7 +219,7 @@ class TrainConfig:
 
 
 def load_yaml(path: str | Path) -> dict:
-    """Read a YAML preset (a mapping); a missing file, invalid YAML or a non-mapping raises ``ValueError``.
+    """Read a YAML preset (a mapping); a missing or empty file, invalid YAML or a non-mapping raises ``ValueError``.
 
     Numbers in exponent notation without a dot (``3e-5``, ``1E4``) are read as numbers, as YAML 1.2 and most
     users read them, not as the strings of PyYAML's YAML 1.1; a whole number in exponent notation (``2e6``) is
@@ -231,9 +231,14 @@ def load_yaml(path: str | Path) -> dict:
     if not path.is_file():
         raise ValueError(f"config file {str(path)!r} does not exist")
     try:
-        values = yaml.load(path.read_text(), Loader=_Loader) or {}
+        values = yaml.load(path.read_text(), Loader=_Loader)
     except yaml.YAMLError as error:
-        raise ValueError(f"config file {str(path)!r} is not valid YAML: {error}") from None
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or " ".join(str(error).split())
+        raise ValueError(f"config file {str(path)!r} is not valid YAML{where}: {problem}") from None
+    if values is None:
+        raise ValueError(f"config file {str(path)!r} holds no options (for the defaults, give no --config)")
     if not isinstance(values, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
     return values

@@ -8,7 +8,6 @@ episodes are not over-counted, and the same seed gives the same episodes.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import sys
@@ -24,6 +23,7 @@ from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
+from activeperc_rl.cli import ArgumentParser
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy
@@ -79,13 +79,16 @@ def evaluate(
         with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
             torch.manual_seed(seed)
             td = env.reset()
+            if video is not None:
+                frames.append(_video_frame(env, td.get((MOVER, "observation", "image"))))  # the start
             steps = np.zeros(rooms, dtype=np.int64)
             while any(len(r) < q for r, q in zip(returns, quota, strict=True)):
                 td = mover_policy(td)
                 td = env.step(td)
                 steps += 1
                 if video is not None and not returns[0]:
-                    frames.append(_video_frame(env, td))  # before an auto-reset replaces room 0
+                    # before an auto-reset replaces room 0
+                    frames.append(_video_frame(env, td.get(("next", MOVER, "observation", "image"))))
                 following = env.maybe_reset(step_mdp(td, keep_other=True))
                 done = td.get(("next", "done")).reshape(-1).cpu().numpy()
                 reward = td.get(("next", MOVER, "reward")).reshape(-1).cpu().numpy()
@@ -129,9 +132,9 @@ def load_policy(path: str | Path, device="cpu"):
     return config, mover_policy, looker
 
 
-def _video_frame(env, td) -> np.ndarray:
-    """Room 0's bird's-eye map with its first-person view on the right."""
-    return side_by_side(env.sim.render_map(0), td.get(("next", MOVER, "observation", "image"))[0].cpu().numpy())
+def _video_frame(env, images: torch.Tensor) -> np.ndarray:
+    """Room 0's bird's-eye map with its first-person view (``images[0]``, the mover's) on the right."""
+    return side_by_side(env.sim.render_map(0), images[0].cpu().numpy())
 
 
 def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:
@@ -144,7 +147,7 @@ def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``activeperc-eval``."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="activeperc-eval",
         description="Evaluate a run (or a random policy in the run's config) on held-out episodes.",
     )

@@ -96,7 +96,10 @@ def check_fresh(out: str | Path) -> None:
     """``ValueError`` when ``out`` holds files of a run, which a fresh run would overwrite."""
     found = run_files(out)
     if CHECKPOINT in found:
-        raise ValueError(f"{str(out)!r} already holds a run: pass --resume to continue it, or choose another --out")
+        raise ValueError(
+            f"{str(out)!r} already holds a run ({', '.join(found)}): pass --resume to continue it, "
+            "or choose another --out"
+        )
     if found:
         raise ValueError(
             f"{str(out)!r} holds {', '.join(found)} of an earlier run but no {CHECKPOINT} to resume from: "

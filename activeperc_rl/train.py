@@ -80,6 +80,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         else:
             check_fresh(out)
             state = None
+        verb = "resuming" if resume else "training"
+        print(f"activeperc-train: {verb} {config.method} for {config.frames} frames -> {out}", flush=True)
         return _train(config, out, device, state, progress)
 
 

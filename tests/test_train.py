@@ -87,8 +87,11 @@ def test_same_seed_same_run(tmp_path):
 
 def test_existing_run_is_not_overwritten(tmp_path, capsys):
     out = run_cli(tmp_path, "--frames", "200", "--method", "fixed_forward", "--eval-episodes", "0")
+    capsys.readouterr()
     assert cli.main([*TINY, "--out", str(out), "--frames", "400"]) == 2
-    assert "--resume" in capsys.readouterr().err
+    printed = capsys.readouterr()
+    assert "already holds a run (checkpoint.pt, config.yaml, metrics.csv)" in printed.err and "--resume" in printed.err
+    assert printed.out == ""  # no "training ... ->" line for a run that does not start
 
 
 def test_resume_continues_to_the_new_budget(tmp_path):
@@ -294,9 +297,11 @@ def test_resume_without_a_run_names_the_directory(tmp_path, capsys):
 
 
 def test_bad_flags_are_named(tmp_path, capsys):
-    with pytest.raises(SystemExit):
-        cli.main(["--method", "dqn"])
-    assert "dqn" in capsys.readouterr().err
+    for main, argv in ((cli.main, ["--method", "dqn"]), (evaluate.main, [str(tmp_path), "--episodes", "dqn"])):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and "'dqn'" in err and err.count("\n") == 1, err  # one line, no usage block
     assert cli.main([*TINY, "--out", str(tmp_path / "x"), "--epsilon", "1.5"]) == 2
     assert "epsilon" in capsys.readouterr().err
     assert cli.main(["--resume"]) == 2
@@ -348,14 +353,19 @@ def test_preset_numbers_in_exponent_notation(tmp_path):
         ("env: {fov: '100'}\n", "EnvConfig.fov='100'"),
         ("channels: 16\n", "TrainConfig.channels=16"),
         ("env: [1, 2]\n", "'env'"),
-        ("method: meta\n  frames: [\n", "not valid YAML"),
+        ("env: []\n", "'env'"),
+        ("env: false\n", "'env'"),
+        ("method: meta\n  frames: [\n", "is not valid YAML at line 2, column 9: mapping values are not allowed here\n"),
+        ("", "holds no options"),
+        ("# frames: 300\n", "holds no options"),
     ],
 )
 def test_bad_preset_values_are_named(tmp_path, capsys, text, named):
     preset = tmp_path / "p.yaml"
     preset.write_text(text)
     assert cli.main(["--config", str(preset), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
-    assert named in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert named in err and err.count("\n") == 1, err
     assert not (tmp_path / "run").exists()
 
 
@@ -475,6 +485,9 @@ def test_eval_cli(tmp_path, capsys):
     assert result["episodes"] == 5 and 0 <= result["success_rate"] <= 1 and "mean_return" in result
     assert video.stat().st_size > 0
     assert iio.immeta(video)["fps"] == TrainConfig().env.control_hz  # plays in simulated time
+    assert evaluate.main([str(out), "--episodes", "1", "--json", "--video", str(video)]) == 0
+    length = json.loads(capsys.readouterr().out)["mean_length"]
+    assert iio.imread(video).shape == (length + 1, 240, 640, 3)  # the start, then each cycle
     assert evaluate.main([str(out), "--episodes", "5", "--seed", "2"]) == 0  # the same, as one line of text
     line = f"meta: success rate {result['success_rate']:.3f}, mean return {result['mean_return']:.3f} over 5"
     assert capsys.readouterr().out.startswith(line)
