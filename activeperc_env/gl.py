@@ -19,19 +19,33 @@ EGL_HELP = (
     "'apt-get install libegl1 libgl1-mesa-dri' on Debian/Ubuntu, or set MUJOCO_GL to a "
     "backend that works on this machine (glfw with a display, osmesa)."
 )
+OSMESA_HELP = (
+    "MUJOCO_GL=osmesa renders through Mesa's OSMesa, but libOSMesa was not found. Install it, e.g. "
+    "'apt-get install libosmesa6' on Debian/Ubuntu, or use MUJOCO_GL=egl (faster)."
+)
+MESA_DRIVER_HELP = (
+    "Without a GPU, EGL renders through Mesa, whose drivers are a package of their own: install them, e.g. "
+    "'apt-get install libgl1-mesa-dri' on Debian/Ubuntu."
+)
+HEADLESS_BACKENDS = ("egl", "osmesa")  # the MUJOCO_GL backends that need no display
 
 
 def choose_backend() -> None:
     """Set ``MUJOCO_GL=egl`` when it is unset and no display can be opened (none named, or a stale ``DISPLAY``
-    as over ssh without X forwarding); fail clearly without EGL."""
-    if os.environ.get("MUJOCO_GL") or sys.platform in ("darwin", "win32"):
+    as over ssh without X forwarding); fail clearly when the library of the headless backend set or chosen is
+    missing (``import mujoco`` would fail with an ``AttributeError`` of PyOpenGL's)."""
+    if sys.platform in ("darwin", "win32"):
         return
-    if missing_display() is None:
-        return
-    if ctypes.util.find_library("EGL") is None:
+    backend = os.environ.get("MUJOCO_GL", "").lower().strip()
+    if not backend:
+        if missing_display() is None:
+            return
+        backend = os.environ["MUJOCO_GL"] = "egl"
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    if backend == "egl" and ctypes.util.find_library("EGL") is None:
         raise ImportError(EGL_HELP)
-    os.environ["MUJOCO_GL"] = "egl"
-    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    if backend == "osmesa" and ctypes.util.find_library("OSMesa") is None:
+        raise ImportError(OSMESA_HELP)
 
 
 def missing_display() -> str | None:
@@ -70,13 +84,23 @@ def gl_context(width: int, height: int):
     global _made_contexts
     if _forked_after_gl:
         raise RuntimeError(FORK_HELP)
-    backend = os.environ.get("MUJOCO_GL", "").lower()
+    backend = os.environ.get("MUJOCO_GL", "").lower().strip()
     if backend == "egl":
         from mujoco.egl import GLContext
     elif backend == "osmesa":
         from mujoco.osmesa import GLContext
     else:
+        if sys.platform == "linux" and (reason := missing_display()):
+            raise RuntimeError(
+                f"MUJOCO_GL={backend!r} renders through a window system, and there is no display here ({reason}): "
+                "set MUJOCO_GL=egl, or leave it unset, to render headless"
+            )
         from mujoco import GLContext
-    context = GLContext(width, height)
+    try:
+        context = GLContext(width, height)
+    except ImportError as error:  # mujoco.egl's "Cannot initialize a EGL device display": no driver behind libEGL
+        if backend != "egl":
+            raise
+        raise ImportError(f"{error} {MESA_DRIVER_HELP}") from error
     _made_contexts = True
     return context

@@ -5,19 +5,18 @@ Entry points: :func:`make_env` (the batched TorchRL env), :class:`TrainConfig`,
 (and the console scripts ``activeperc-train`` and ``activeperc-eval``).
 """
 
-try:
-    import tensordict  # noqa: F401
-    import torch  # noqa: F401
-    import torchrl  # noqa: F401
-    import yaml  # noqa: F401
-except ImportError as error:  # the environment alone was installed
-    raise ImportError(
-        f"activeperc_rl needs the training extra, and {error.name!r} is not installed: "
-        "pip install torch==2.13.0 -e '.[train]' (from a checkout) or pip install 'activeperc[train]'"
-    ) from error
+import importlib.util
 
-from activeperc_rl.config import TrainConfig
-from activeperc_rl.envs import ActivePerceptionEnv, make_env
-from activeperc_rl.losses import MetaEvaluationLoss
+_missing = [name for name in ("torch", "tensordict", "torchrl", "yaml") if importlib.util.find_spec(name) is None]
+if _missing:  # the environment alone was installed
+    raise ImportError(
+        f"activeperc_rl (training, activeperc-train, activeperc-eval) needs the 'train' extra, and {_missing} are "
+        "not installed: in the activeperc checkout run pip install torch==2.13.0 -e '.[train]' (torch pinned: an "
+        "unpinned torch pulls a CUDA build of several GB)"
+    )
+
+from activeperc_rl.config import TrainConfig  # noqa: E402 (after the check above)
+from activeperc_rl.envs import ActivePerceptionEnv, make_env  # noqa: E402
+from activeperc_rl.losses import MetaEvaluationLoss  # noqa: E402
 
 __all__ = ["ActivePerceptionEnv", "MetaEvaluationLoss", "TrainConfig", "make_env"]

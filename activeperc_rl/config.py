@@ -199,7 +199,9 @@ class TrainConfig:
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"unknown training option(s) {unknown}; known options: {sorted(known)}")
+            env_names = sorted(set(unknown) & {f.name for f in dataclasses.fields(EnvConfig)})
+            hint = f"; {env_names} are environment options: put them under 'env:'" if env_names else ""
+            raise ValueError(f"unknown training option(s) {unknown}{hint}; known options: {sorted(known)}")
         return cls(**values)
 
     def to_dict(self) -> dict:

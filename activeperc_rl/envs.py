@@ -78,6 +78,7 @@ type. ``SerialEnv`` and an in-process ``Collector`` run the looker itself, under
 
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
@@ -368,6 +369,11 @@ class ActivePerceptionEnv(EnvBase):
         image = torch.from_numpy(self.sim.render())
         pan = torch.from_numpy(self.sim.pan())
         return TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size, device=self.device)
+
+
+# TorchRL's metaclass shows the constructor as (*args, **kwargs) to help() and IDEs: give them its real arguments
+_init = inspect.signature(ActivePerceptionEnv.__init__)
+ActivePerceptionEnv.__signature__ = _init.replace(parameters=list(_init.parameters.values())[1:])
 
 
 def _check_looker_action(action: torch.Tensor, n: int) -> None:

@@ -221,6 +221,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 f"{name:>8}: success rate {values['success_rate']:.3f}, mean return {values['mean_return']:.3f} "
                 f"({values['episodes']} held-out episodes)"
             )
+    print(f"activeperc-train: done, {frames} frames; the run is in {out}", flush=True)
     return result
 
 

@@ -46,5 +46,38 @@ def test_a_usable_display_or_a_chosen_backend_is_left_alone(monkeypatch):
     assert "MUJOCO_GL" not in os.environ
     monkeypatch.setenv("MUJOCO_GL", "osmesa")
     monkeypatch.setattr(gl, "missing_display", lambda: "none found")
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: f"lib{name}.so")  # as where OSMesa is installed
     gl.choose_backend()
     assert os.environ["MUJOCO_GL"] == "osmesa"
+
+
+@pytest.mark.parametrize(
+    ("backend", "library", "install"), [("egl", "EGL", "libegl1"), ("osmesa", "OSMesa", "libosmesa6")]
+)
+def test_a_headless_backend_set_without_its_library_says_what_to_install(monkeypatch, backend, library, install):
+    """``import mujoco`` itself would fail with an AttributeError from deep inside PyOpenGL."""
+    monkeypatch.setenv("MUJOCO_GL", backend)
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: None if name == library else "lib.so")
+    with pytest.raises(ImportError, match=f"apt-get install {install}"):
+        gl.choose_backend()
+
+
+def test_a_window_backend_without_a_display_says_to_use_egl(monkeypatch):
+    """MuJoCo would fail at its first context with 'an OpenGL platform library has not been loaded'."""
+    monkeypatch.setenv("MUJOCO_GL", "glfw")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(RuntimeError, match=r"MUJOCO_GL='glfw' .* no display here .*: set MUJOCO_GL=egl"):
+        gl.gl_context(8, 8)
+
+
+def test_egl_without_mesas_drivers_says_what_to_install(monkeypatch):
+    import mujoco.egl
+
+    def no_device(width, height):
+        raise ImportError("Cannot initialize a EGL device display.")
+
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    monkeypatch.setattr(mujoco.egl, "GLContext", no_device)
+    with pytest.raises(ImportError, match="Cannot initialize a EGL device display. .*apt-get install libgl1-mesa-dri"):
+        gl.gl_context(8, 8)

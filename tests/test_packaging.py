@@ -61,3 +61,19 @@ def test_the_wheel_holds_every_module_the_scene_and_the_type_marker(tmp_path):
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     scripts = zipfile.ZipFile(wheel).read(entry_points).decode()
     assert all(f"{s} =" in scripts for s in ("activeperc-train", "activeperc-eval", "activeperc-episode"))
+
+
+def test_training_without_its_extra_names_what_is_missing_and_the_pinned_install():
+    """With the environment alone installed, ``activeperc_rl`` (and so ``activeperc-train``) names every missing
+    package of the ``train`` extra and the install command with torch pinned."""
+    script = (
+        "import importlib.util\n"
+        "find = importlib.util.find_spec\n"
+        "importlib.util.find_spec = lambda name, *a: None if name in ('torch', 'torchrl') else find(name, *a)\n"
+        "import activeperc_rl\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 1
+    message = out.stderr.strip().splitlines()[-1]
+    assert "needs the 'train' extra, and ['torch', 'torchrl'] are not installed" in message, message
+    assert "pip install torch==2.13.0 -e '.[train]'" in message, message

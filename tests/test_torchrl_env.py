@@ -1,5 +1,6 @@
 """The batched TorchRL env (specs, auto-reset, seeding, the looker in the loop) and PettingZooWrapper."""
 
+import inspect
 import math
 import warnings
 
@@ -12,7 +13,7 @@ from torchrl.envs import PettingZooWrapper
 from torchrl.envs.utils import check_env_specs
 
 import activeperc_env
-from activeperc_rl.envs import make_env
+from activeperc_rl.envs import ActivePerceptionEnv, make_env
 
 # fast episodes: each move lasts 0.5 s, so a scripted mover reaches the goal in 5-16 cycles
 FAST = dict(num_obstacles=0, control_hz=2.0, forward_speed=2.0, turn_speed=40.0)
@@ -295,3 +296,7 @@ def test_pettingzoo_wrapper_reads_the_global_state():
     assert data["state"].shape == (3, 14) and data["next", "state"].shape == (3, 14)
     assert torch.equal(data["next", "state"][:, -1], torch.tensor([1, 2, 3]) / 3)  # cycle / max_cycles
     env.close()
+
+
+def test_help_shows_the_constructors_arguments():
+    assert list(inspect.signature(ActivePerceptionEnv).parameters)[:3] == ["config", "num_envs", "device"]

@@ -87,7 +87,7 @@ def test_same_seed_same_run(tmp_path):
 
 def test_existing_run_is_not_overwritten(tmp_path, capsys):
     out = run_cli(tmp_path, "--frames", "200", "--method", "fixed_forward", "--eval-episodes", "0")
-    capsys.readouterr()
+    assert f"activeperc-train: done, 224 frames; the run is in {out}" in capsys.readouterr().out
     assert cli.main([*TINY, "--out", str(out), "--frames", "400"]) == 2
     printed = capsys.readouterr()
     assert "already holds a run (checkpoint.pt, config.yaml, metrics.csv)" in printed.err and "--resume" in printed.err
@@ -357,6 +357,7 @@ def test_preset_numbers_in_exponent_notation(tmp_path):
         ("env: false\n", "'env'"),
         ("method: meta\n  frames: [\n", "is not valid YAML at line 2, column 9: mapping values are not allowed here\n"),
         ("", "holds no options"),
+        ("fov: 100\n", "['fov'] are environment options: put them under 'env:'"),
         ("# frames: 300\n", "holds no options"),
     ],
 )
