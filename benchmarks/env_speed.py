@@ -242,7 +242,7 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> flo
 
 FIGURES = {  # key of each figure of ours: its label and unit
     "aec": ("AEC env activeperc_env.env()", "cycles/s"),
-    **{f"core_n{n}": (f"core Simulator(num_envs={n})", "cycles/s   (2 renders each)") for n in CORE_SIZES},
+    **{f"core_n{n}": (f"core Simulator(num_envs={n})", "cycles/s   (up to 2 renders each)") for n in CORE_SIZES},
     f"gym_vector_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0 N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
     f"gym_sync_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0, mode sync N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
 }
