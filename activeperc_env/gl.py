@@ -27,7 +27,6 @@ MESA_DRIVER_HELP = (
     "Without a GPU, EGL renders through Mesa, whose drivers are a package of their own: install them, e.g. "
     "'apt-get install libgl1-mesa-dri' on Debian/Ubuntu."
 )
-HEADLESS_BACKENDS = ("egl", "osmesa")  # the MUJOCO_GL backends that need no display
 
 
 def choose_backend() -> None:
