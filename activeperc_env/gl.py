@@ -73,6 +73,12 @@ def _note_fork() -> None:
 os.register_at_fork(after_in_child=_note_fork)
 
 
+def forked_after_gl() -> bool:
+    """Whether this process was forked from one that had made a GL context: its copy of the driver's state must not
+    be used (making or freeing a context in it may hang)."""
+    return _forked_after_gl
+
+
 def gl_context(width: int, height: int):
     """An offscreen GL context of the backend ``MUJOCO_GL`` names, whatever was imported first.
 
@@ -81,7 +87,7 @@ def gl_context(width: int, height: int):
     forked from one that had made a context (where the driver would hang), raises ``RuntimeError``.
     """
     global _made_contexts
-    if _forked_after_gl:
+    if forked_after_gl():
         raise RuntimeError(FORK_HELP)
     backend = os.environ.get("MUJOCO_GL", "").lower().strip()
     if backend == "egl":

@@ -9,12 +9,13 @@ off: they cost most of the frame time and carry nothing the agents need.
 from __future__ import annotations
 
 import math
+import sys
 
 import mujoco
 import numpy as np
 
 from activeperc_env import names
-from activeperc_env.gl import gl_context
+from activeperc_env.gl import forked_after_gl, gl_context
 
 MAX_BUFFER = 4096  # largest offscreen side we ask of the GL driver
 MAP_SIZE = (320, 240)  # width, height of the bird's-eye map
@@ -146,13 +147,18 @@ class TiledRenderer:
         return pixels[::-1].copy()
 
     def close(self) -> None:
-        """Release the GL resources."""
-        if self._gl is not None:
+        """Release the GL resources (none in a fork of a rendering process: what it inherited is left alone)."""
+        if self._gl is None:
+            return
+        if not forked_after_gl():
             context = getattr(self, "_ctx", None)  # missing when the constructor failed after the GL context
             if context is not None:
+                # MuJoCo frees the GL objects by their names in whatever context is current: make it ours, or
+                # another renderer's framebuffer and textures of the same names are deleted and it draws wrong views
+                self._gl.make_current()
                 context.free()
             self._gl.free()
-            self._gl = None
+        self._gl = None
 
     def _pose(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> None:
         """Load one simulation's positions and compute the poses the renderer reads."""
@@ -181,7 +187,8 @@ class TiledRenderer:
             self._scene.ngeom += 1
 
     def __del__(self):
-        self.close()
+        if not sys.is_finalizing():  # at interpreter exit the GL library may be gone; the contexts die with the process
+            self.close()
 
 
 def side_by_side(map_image: np.ndarray, view: np.ndarray) -> np.ndarray:

@@ -139,3 +139,35 @@ def test_parked_occluders_left_out_of_the_views_change_no_pixel(num_obstacles):
         for sim in (hidden, drawn):
             if sim.done.any():
                 sim.reset(np.flatnonzero(sim.done))
+
+
+@pytest.mark.skipif(os.environ.get("MUJOCO_GL") != "egl", reason="reads the current context through EGL")
+def test_a_renderer_frees_its_gl_objects_in_its_own_context():
+    """MuJoCo frees a renderer's framebuffer and textures by their names in whatever GL context is current. Freed
+    under another renderer's context, they deleted that renderer's objects of the same names: an env whose earlier
+    copy was collected while the env's context was current drew wrong views from then on."""
+    from OpenGL import EGL
+
+    old, new = Simulator(), Simulator()
+    for sim in (old, new):
+        sim.reset(seeds=[0])
+        sim.render()  # the new one's context is current now
+    renderer = old.renderer
+    ours = renderer._gl._context.address
+    current = []
+
+    class Spy:
+        def __init__(self, context):
+            self.context = context
+
+        def free(self):
+            current.append(EGL.eglGetCurrentContext().address)
+            self.context.free()
+
+    renderer._ctx = Spy(renderer._ctx)
+    old.close()
+    assert current == [ours]
+    before = new.render().copy()
+    new.set_state(new.get_state())  # draw anew
+    assert_same_view(new.render(), before)
+    new.close()
