@@ -73,13 +73,59 @@ def _note_fork() -> None:
 os.register_at_fork(after_in_child=_note_fork)
 
 
+class Context:
+    """A GL context of :func:`gl_context`, current in a thread only while a renderer draws: the renderer makes it
+    current, draws, reads back and releases it, so that it may be used from any thread, one at a time (EGL refuses
+    a context that is current in another thread, and an env created in one thread is often stepped in another).
+    With EGL both switches go straight to libEGL (PyOpenGL's wrapper took 5 us a call); with the other backends
+    the context stays current in the thread that drew last."""
+
+    def __init__(self, context):
+        self.context = context  # MuJoCo's GLContext of the backend
+        self._switch = _egl_switch(context) if type(context).__module__.startswith("mujoco.egl") else None
+
+    def make_current(self) -> None:
+        """Make the context current in the calling thread."""
+        if self._switch is None:
+            self.context.make_current()
+        else:
+            self._switch(True)
+
+    def release(self) -> None:
+        """Leave no context current in the calling thread (EGL; a no-op with the other backends)."""
+        if self._switch is not None:
+            self._switch(False)
+
+    def free(self) -> None:
+        """Destroy the context."""
+        self.context.free()
+
+
+def _egl_switch(context):
+    """``switch(on)``: make MuJoCo's EGL ``context`` current in the calling thread (``on``), or none; raises
+    ``RuntimeError`` with EGL's error code when EGL refuses."""
+    from mujoco import egl
+
+    lib = ctypes.CDLL(ctypes.util.find_library("EGL"))
+    lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+    lib.eglMakeCurrent.restype = ctypes.c_uint
+    lib.eglGetError.restype = ctypes.c_int
+    display, ours = ctypes.c_void_p(egl.EGL_DISPLAY.address), ctypes.c_void_p(context._context.address)
+
+    def switch(on: bool) -> None:
+        if not lib.eglMakeCurrent(display, None, None, ours if on else None):
+            raise RuntimeError(f"eglMakeCurrent failed with EGL error 0x{lib.eglGetError():x}")
+
+    return switch
+
+
 def forked_after_gl() -> bool:
     """Whether this process was forked from one that had made a GL context: its copy of the driver's state must not
     be used (making or freeing a context in it may hang)."""
     return _forked_after_gl
 
 
-def gl_context(width: int, height: int):
+def gl_context(width: int, height: int) -> Context:
     """An offscreen GL context of the backend ``MUJOCO_GL`` names, whatever was imported first.
 
     ``mujoco`` binds ``mujoco.GLContext`` when it is imported; if that happened before
@@ -108,4 +154,4 @@ def gl_context(width: int, height: int):
             raise
         raise ImportError(f"{error} {MESA_DRIVER_HELP}") from error
     _made_contexts = True
-    return context
+    return Context(context)

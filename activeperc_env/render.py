@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import mujoco
 import numpy as np
@@ -43,9 +45,9 @@ class TiledRenderer:
         self._model = model
         self._gl = None
         self._gl = gl_context(buf_w, buf_h)
-        self._gl.make_current()
-        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
+        with self._current():
+            self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
         self._scene = mujoco.MjvScene(model, maxgeom=200)
         for flag in (
             mujoco.mjtRndFlag.mjRND_SHADOW,
@@ -85,18 +87,29 @@ class TiledRenderer:
         n = len(qpos)
         if out is None:
             out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
-        self._gl.make_current()
         per_pass = self.views_per_pass
         if tiles is None:
-            for first in range(0, n, per_pass):
-                views = np.arange(first, min(n, first + per_pass))
-                self._draw(qpos, mocap_pos, views, views - first, out)
+            with self._current():
+                for first in range(0, n, per_pass):
+                    views = np.arange(first, min(n, first + per_pass))
+                    self._draw(qpos, mocap_pos, views, views - first, out)
         elif n:
             tiles = np.asarray(tiles, dtype=np.int64)
             if tiles.shape != (n,) or tiles.min() < 0 or tiles.max() >= per_pass or len(np.unique(tiles)) != n:
                 raise ValueError(f"tiles {tiles.tolist()} invalid: expected {n} distinct tiles in 0 .. {per_pass - 1}")
-            self._draw(qpos, mocap_pos, np.arange(n), tiles, out)
+            with self._current():
+                self._draw(qpos, mocap_pos, np.arange(n), tiles, out)
         return out
+
+    @contextmanager
+    def _current(self) -> Iterator[None]:
+        """This renderer's GL context, current in the calling thread for the block and released after it: the next
+        call may come from another thread (an env created in one thread and stepped in another)."""
+        self._gl.make_current()
+        try:
+            yield
+        finally:
+            self._gl.release()
 
     def _draw(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, out: np.ndarray) -> None:
         """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer, read back once, fill ``out[views]``."""
@@ -132,7 +145,6 @@ class TiledRenderer:
         Returns:
             (240, 320, 3) uint8 image, north (+y) up.
         """
-        self._gl.make_current()
         self._pose(qpos, mocap_pos)
         mujoco.mjv_updateScene(
             self._model, self._data, self._map_opt, None, self._map,
@@ -141,9 +153,10 @@ class TiledRenderer:
         self._add_view_cone(fov)
         width, height = MAP_SIZE
         rect = mujoco.MjrRect(0, 0, width, height)
-        mujoco.mjr_render(rect, self._scene, self._ctx)
         pixels = np.empty((height, width, 3), dtype=np.uint8)
-        mujoco.mjr_readPixels(pixels, None, rect, self._ctx)
+        with self._current():
+            mujoco.mjr_render(rect, self._scene, self._ctx)
+            mujoco.mjr_readPixels(pixels, None, rect, self._ctx)
         return pixels[::-1].copy()
 
     def close(self) -> None:
@@ -155,8 +168,8 @@ class TiledRenderer:
             if context is not None:
                 # MuJoCo frees the GL objects by their names in whatever context is current: make it ours, or
                 # another renderer's framebuffer and textures of the same names are deleted and it draws wrong views
-                self._gl.make_current()
-                context.free()
+                with self._current():
+                    context.free()
             self._gl.free()
         self._gl = None
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from conftest import assert_same_view
 
+import activeperc_env
 from activeperc_env import EnvConfig, Simulator
 
 
@@ -151,9 +152,9 @@ def test_a_renderer_frees_its_gl_objects_in_its_own_context():
     old, new = Simulator(), Simulator()
     for sim in (old, new):
         sim.reset(seeds=[0])
-        sim.render()  # the new one's context is current now
+        sim.render()
     renderer = old.renderer
-    ours = renderer._gl._context.address
+    ours = renderer._gl.context._context.address
     current = []
 
     class Spy:
@@ -171,3 +172,26 @@ def test_a_renderer_frees_its_gl_objects_in_its_own_context():
     new.set_state(new.get_state())  # draw anew
     assert_same_view(new.render(), before)
     new.close()
+
+
+def test_an_env_renders_in_whichever_thread_steps_it():
+    """An env made and reset in one thread and stepped in another (a thread pool, an evaluation thread) draws as in
+    one thread: each draw releases its GL context (EGL refused a context still current in the thread that drew
+    last: EGL_BAD_ACCESS)."""
+    import threading
+
+    actions = [{"mover_0": m, "looker_0": c} for m, c in [(2, 2), (0, 1), (2, 0), (1, 2)]]
+    alone = activeperc_env.parallel_env()
+    alone.reset(seed=5)
+    expected = [alone.step(a)[0]["mover_0"]["image"] for a in actions]
+    env = activeperc_env.parallel_env()
+    env.reset(seed=5)
+    seen = []
+    for a in actions:  # each step in a thread of its own, then the main thread renders again
+        worker = threading.Thread(target=lambda a=a: seen.append(env.step(a)[0]["mover_0"]["image"]))
+        worker.start()
+        worker.join()
+        env.sim.render()
+    assert len(seen) == len(actions)
+    for got, want in zip(seen, expected, strict=True):
+        np.testing.assert_array_equal(got, want)
