@@ -124,11 +124,12 @@ def profile(views: int, seed: int) -> dict:
     drawn: list[int] = []
     out = {mode: np.empty((renderer.height, renderer.width, 3), dtype=np.uint8) for mode in MODES}
     try:
-        for index in range(views):
-            for mode in MODES if index % 2 == 0 else MODES[::-1]:  # each mode first in half the views
-                draw(index, mode == "culled", out[mode], spent[mode], drawn)
-            if not np.array_equal(out["whole"], out["culled"]):
-                result.setdefault("first_differing_view", index)
+        with renderer._current():  # the renderer's GL context, current for the whole profile (not a part of it)
+            for index in range(views):
+                for mode in MODES if index % 2 == 0 else MODES[::-1]:  # each mode first in half the views
+                    draw(index, mode == "culled", out[mode], spent[mode], drawn)
+                if not np.array_equal(out["whole"], out["culled"]):
+                    result.setdefault("first_differing_view", index)
     finally:
         model.geom_group[:] = groups
         sim.close()
