@@ -68,6 +68,11 @@ _forked_after_gl = False  # ... and this process is such a fork
 def _note_fork() -> None:
     global _forked_after_gl
     _forked_after_gl = _made_contexts
+    egl = sys.modules.get("mujoco.egl")
+    if _forked_after_gl and egl is not None:
+        # MuJoCo's exit handler terminates its EGL display and its contexts destroy themselves when collected: in a
+        # fork, the driver's copied state hangs on that. Without a display MuJoCo skips every such EGL call.
+        egl.EGL_DISPLAY = None
 
 
 os.register_at_fork(after_in_child=_note_fork)
@@ -75,48 +80,78 @@ os.register_at_fork(after_in_child=_note_fork)
 
 class Context:
     """A GL context of :func:`gl_context`, current in a thread only while a renderer draws: the renderer makes it
-    current, draws, reads back and releases it, so that it may be used from any thread, one at a time (EGL refuses
-    a context that is current in another thread, and an env created in one thread is often stepped in another).
-    With EGL both switches go straight to libEGL (PyOpenGL's wrapper took 5 us a call); with the other backends
-    the context stays current in the thread that drew last."""
+    current, draws, reads back and puts back what was current before (nothing, as a rule), so that it may be used
+    from any thread, one at a time (EGL refuses a context that is current in another thread, and an env created in
+    one thread is often stepped in another). With the other backends the context stays current in the thread that
+    drew last."""
 
     def __init__(self, context):
         self.context = context  # MuJoCo's GLContext of the backend
-        self._switch = _egl_switch(context) if type(context).__module__.startswith("mujoco.egl") else None
+        self._egl = _Egl(context) if type(context).__module__.startswith("mujoco.egl") else None
 
-    def make_current(self) -> None:
-        """Make the context current in the calling thread."""
-        if self._switch is None:
+    def make_current(self):
+        """Make the context current in the calling thread; returns what was current before, for :meth:`restore`.
+        In a fork of a process that had rendered, raises ``RuntimeError`` (the driver would hang)."""
+        if forked_after_gl():
+            raise RuntimeError(FORK_HELP)
+        if self._egl is None:
             self.context.make_current()
-        else:
-            self._switch(True)
+            return None
+        return self._egl.make_current()
 
-    def release(self) -> None:
-        """Leave no context current in the calling thread (EGL; a no-op with the other backends)."""
-        if self._switch is not None:
-            self._switch(False)
+    def restore(self, previous) -> None:
+        """Make current again what :meth:`make_current` found current (with EGL: nothing, or the context of a
+        renderer whose draw the garbage collector interrupted to close this one)."""
+        if self._egl is not None:
+            self._egl.restore(previous)
 
     def free(self) -> None:
         """Destroy the context."""
         self.context.free()
 
 
-def _egl_switch(context):
-    """``switch(on)``: make MuJoCo's EGL ``context`` current in the calling thread (``on``), or none; raises
-    ``RuntimeError`` with EGL's error code when EGL refuses."""
-    from mujoco import egl
+class _Egl:
+    """Switching MuJoCo's EGL context straight through libEGL (PyOpenGL's wrapper took 5 us a call)."""
 
-    lib = ctypes.CDLL(ctypes.util.find_library("EGL"))
-    lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
-    lib.eglMakeCurrent.restype = ctypes.c_uint
-    lib.eglGetError.restype = ctypes.c_int
-    display, ours = ctypes.c_void_p(egl.EGL_DISPLAY.address), ctypes.c_void_p(context._context.address)
+    DRAW, READ = 0x3059, 0x305A  # EGL_DRAW, EGL_READ
 
-    def switch(on: bool) -> None:
-        if not lib.eglMakeCurrent(display, None, None, ours if on else None):
-            raise RuntimeError(f"eglMakeCurrent failed with EGL error 0x{lib.eglGetError():x}")
+    def __init__(self, context):
+        from mujoco import egl
 
-    return switch
+        lib = ctypes.CDLL(ctypes.util.find_library("EGL"))
+        lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+        lib.eglMakeCurrent.restype = ctypes.c_uint
+        lib.eglGetCurrentContext.restype = ctypes.c_void_p
+        lib.eglGetCurrentDisplay.restype = ctypes.c_void_p
+        lib.eglGetCurrentSurface.argtypes = [ctypes.c_int]
+        lib.eglGetCurrentSurface.restype = ctypes.c_void_p
+        lib.eglGetError.restype = ctypes.c_int
+        self._lib = lib
+        self._display, self._context = egl.EGL_DISPLAY.address, context._context.address
+
+    def make_current(self) -> tuple:
+        """Make the context current; returns the display, surfaces and context current before."""
+        lib = self._lib
+        previous = (
+            lib.eglGetCurrentDisplay(),
+            lib.eglGetCurrentSurface(self.DRAW),
+            lib.eglGetCurrentSurface(self.READ),
+            lib.eglGetCurrentContext(),
+        )
+        self._switch(self._display, None, None, self._context)
+        return previous
+
+    def restore(self, previous: tuple) -> None:
+        """Make ``previous`` (from :meth:`make_current`) current again, or no context when there was none."""
+        display, draw, read, context = previous
+        if context:
+            self._switch(display, draw, read, context)
+        else:
+            self._switch(self._display, None, None, None)
+
+    def _switch(self, display, draw, read, context) -> None:
+        if not self._lib.eglMakeCurrent(display, draw, read, context):
+            raise RuntimeError(f"eglMakeCurrent failed with EGL error 0x{self._lib.eglGetError():x}")
 
 
 def forked_after_gl() -> bool:

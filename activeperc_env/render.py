@@ -103,13 +103,15 @@ class TiledRenderer:
 
     @contextmanager
     def _current(self) -> Iterator[None]:
-        """This renderer's GL context, current in the calling thread for the block and released after it: the next
-        call may come from another thread (an env created in one thread and stepped in another)."""
-        self._gl.make_current()
+        """This renderer's GL context, current in the calling thread for the block; after it, what was current
+        before (as a rule nothing: the next call may come from another thread, as for an env created in one
+        thread and stepped in another; or another renderer's, when the garbage collector closed this one in the
+        middle of that renderer's draw)."""
+        previous = self._gl.make_current()
         try:
             yield
         finally:
-            self._gl.release()
+            self._gl.restore(previous)
 
     def _draw(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, out: np.ndarray) -> None:
         """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer, read back once, fill ``out[views]``."""

@@ -195,3 +195,74 @@ def test_an_env_renders_in_whichever_thread_steps_it():
     assert len(seen) == len(actions)
     for got, want in zip(seen, expected, strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.skipif(os.environ.get("MUJOCO_GL") != "egl", reason="reads the current context through EGL")
+def test_a_renderer_closed_in_the_middle_of_anothers_draw_gives_its_context_back():
+    """The garbage collector may close an env's renderer while another renderer draws (at any allocation of the
+    draw): the drawing one's context must be current again afterwards, or its read-back silently returned its
+    previous frame."""
+    from OpenGL import EGL
+
+    drawing, collected = Simulator(), Simulator()
+    for sim in (drawing, collected):
+        sim.reset(seeds=[0])
+        sim.render()
+    with drawing.renderer._current():
+        collected.close()
+        assert EGL.eglGetCurrentContext().address == drawing.renderer._gl.context._context.address
+    assert not EGL.eglGetCurrentContext()  # and nothing is left current after the draw
+    drawing.close()
+
+
+INHERITED_SCRIPT = """
+import multiprocessing, os, sys, time
+from activeperc_env import Simulator
+
+sim = Simulator(num_envs=1)
+sim.reset(seeds=[0])
+sim.render()
+
+def child(queue):
+    try:
+        sim.move([2])
+        queue.put(("rendered", sim.render().shape))
+    except RuntimeError as error:
+        queue.put(("error", str(error)))
+
+if sys.argv[1] == "step":
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    process = context.Process(target=child, args=(queue,), daemon=True)
+    process.start()
+    print(queue.get(timeout=60))
+    process.join()
+else:  # a plain os.fork child that exits normally, running the exit handlers it inherited
+    pid = os.fork()
+    if pid == 0:
+        sys.exit(0)
+    for _ in range(300):
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            print("child exited", os.waitstatus_to_exitcode(status))
+            break
+        time.sleep(0.1)
+    else:
+        print("child hung")
+        os.kill(pid, 9)
+print("parent renders", sim.render().shape)
+"""
+
+
+@pytest.mark.parametrize("child", ["step", "exit"])
+def test_a_fork_that_inherited_a_rendering_env_neither_hangs_nor_breaks_the_parent(child):
+    """Stepping the inherited env fails clearly (it hung in the read-back); a fork that just exits does (it hung in
+    MuJoCo's exit handler, which terminated the EGL display the parent's driver state was copied from)."""
+    done = subprocess.run(
+        [sys.executable, "-c", INHERITED_SCRIPT, child], capture_output=True, text=True, timeout=120, check=True
+    )
+    if child == "step":
+        assert "('error'," in done.stdout and "'spawn'" in done.stdout, done.stdout
+    else:
+        assert "child exited 0" in done.stdout, done.stdout
+    assert "parent renders (1, 60, 80, 3)" in done.stdout
