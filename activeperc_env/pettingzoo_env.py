@@ -49,8 +49,7 @@ class _Adapter(OneRoomRendering):
     def state(self) -> np.ndarray:
         """The room's true state for centralised critics (:attr:`state_space`): robot x, y, cos and sin of the
         heading, pan, goal x, y, each occluder's x, y, and ``cycle / max_cycles``, as float32."""
-        self.sim.require_started("state()")
-        return self.sim.state()[0]
+        return self.sim.state()[0]  # before the first reset() it raises RuntimeError, naming state()
 
     def _reset_sim(self, seed: int | None) -> None:
         self.sim.reset(seeds=None if seed is None else [seed])

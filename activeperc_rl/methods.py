@@ -251,8 +251,8 @@ class Method:
             for collector, state in zip(self.collectors, states, strict=True):
                 if isinstance(collector, ProcessCollector):
                     collector.load_state(state["workers"])
-                    continue
-                load_collector_state(collector, state)
+                else:
+                    load_collector_state(collector, state)
         except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
             raise ValueError(f"its collectors' state does not fit this run: {error}") from error
 
