@@ -19,8 +19,9 @@ SIDE_Y = ROOM_HALF_Y - 0.5
 LINE_OFFSET = 0.45  # the first occluder's centre is within this of the start-goal line
 SIDE_OFFSET = (1.0, 1.6)  # the others' centres are this far to either side of it
 HEADING_SPREAD = np.pi / 2  # the start heading is within +-90 degrees of the goal's bearing
-# whole-layout draws before giving up: the hardest config (6 occluders, goal_distance 2.5) fits about one draw in 70,
-# so 1,000 would fail a few resets in a million; 10,000 fail practically never and cost nothing where a draw fits
+# whole-layout draws before giving up: the hardest config (6 occluders, goal_distance 2.5) fits 13 of 700 draws
+# (tests/test_scene.py): all of 1,000 draws then fail about once in 10**8 resets, which long runs with many rooms
+# approach; all of 10,000 practically never, at no cost where a draw fits
 MAX_TRIES = 10_000
 PLACE_TRIES = 50  # spots tried for one occluder before the draw starts over
 
