@@ -18,7 +18,16 @@ from pathlib import Path
 from activeperc_env import EnvConfig
 from activeperc_env.config import LOOKER_REWARDS, field_docs
 from activeperc_rl.checkpoint import CHECKPOINT
-from activeperc_rl.config import DEVICES, E1_LOOKS, METHODS, MOVER_ROLLOUTS, TrainConfig, load_yaml, whole_number
+from activeperc_rl.config import (
+    DEVICES,
+    E1_LOOKS,
+    METHOD_OPTIONS,
+    METHODS,
+    MOVER_ROLLOUTS,
+    TrainConfig,
+    load_yaml,
+    whole_number,
+)
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt
 from activeperc_rl.workers import WorkerError
@@ -30,6 +39,7 @@ CHOICES = {
     "e1_looks": E1_LOOKS,
     "looker_reward": LOOKER_REWARDS,
 }
+RUN_OPTIONS = ("out", "resume", "config", "no_progress")  # the flags that are not config fields
 
 
 def _add_fields(group, cls, skip=()) -> None:
@@ -86,7 +96,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     from activeperc_rl.train import load_run_config
 
     env_names = {f.name for f in dataclasses.fields(EnvConfig)}
-    flags = {k: v for k, v in vars(args).items() if k not in ("out", "resume", "config", "no_progress")}
+    flags = {k: v for k, v in vars(args).items() if k not in RUN_OPTIONS}
     if args.resume:
         if args.out is None:
             raise ValueError("--resume needs --out RUN_DIR")
@@ -103,6 +113,24 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     return TrainConfig.from_dict(values | {"env": env})
 
 
+def unused_options_warning(args: argparse.Namespace, config: TrainConfig) -> str | None:
+    """A line naming the options set by a flag or in the preset that the run's method does not read, or ``None``
+    (also on ``--resume``, whose options are the run's own)."""
+    if args.resume:
+        return None
+    given = [k for k in vars(args) if k not in RUN_OPTIONS] + (list(load_yaml(args.config)) if args.config else [])
+    unused = config.unused(dict.fromkeys(given))
+    if not unused:
+        return None
+    named = ", ".join(f"{name} (read by {_listed(METHOD_OPTIONS[name])} only)" for name in unused)
+    return f"activeperc-train: warning: method {config.method!r} does not use {named}"
+
+
+def _listed(names) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return " and ".join(filter(None, [", ".join(names[:-1]), names[-1]]))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``activeperc-train``."""
     from activeperc_rl.train import TrainingError, train
@@ -113,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
         with stop_raises_interrupt():
             config = config_from_args(args)
+            if warning := unused_options_warning(args, config):
+                print(warning, file=sys.stderr)
             if out is None:
                 stem = Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
                 out = named = str(new_run_dir(stem))

@@ -28,6 +28,19 @@ METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
+# The options that only some methods read; every other option is read by every method.
+METHOD_OPTIONS = {
+    "epsilon": ("meta",),
+    "alpha": ("meta",),
+    "shared_seeds": ("meta",),
+    "resample_d1": ("meta",),
+    "e1_looks": ("meta",),
+    "mover_rollouts": ("meta",),
+    "looker_lr": ("meta", "ia2c"),
+    "looker_entropy_coeff": ("meta", "ia2c"),
+    "looker_hold_prob": ("meta", "ia2c", "joint", "curriculum"),
+    "curriculum_fraction": ("curriculum",),
+}
 
 
 @with_field_docs
@@ -203,6 +216,10 @@ class TrainConfig:
             hint = f"; {env_names} are environment options: put them under 'env:'" if env_names else ""
             raise ValueError(f"unknown training option(s) {unknown}{hint}; known options: {sorted(known)}")
         return cls(**values)
+
+    def unused(self, names) -> list[str]:
+        """Those of the option ``names`` that this config's method does not read (:data:`METHOD_OPTIONS`)."""
+        return [name for name in names if self.method not in METHOD_OPTIONS.get(name, METHODS)]
 
     def to_dict(self) -> dict:
         """The config as plain YAML-ready values (the env config nested under ``env``)."""

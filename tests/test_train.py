@@ -335,6 +335,38 @@ def test_preset_then_flags(tmp_path):
         cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
 
 
+def test_options_the_method_does_not_read_are_named(tmp_path):
+    preset = tmp_path / "p.yaml"
+    preset.write_text(yaml.safe_dump({"method": "ia2c", "curriculum_fraction": 0.5, "looker_lr": 1e-4}))
+    args = cli.build_parser().parse_args(["--config", str(preset), "--epsilon", "0.1", "--lr", "1e-3"])
+    warning = cli.unused_options_warning(args, cli.config_from_args(args))
+    assert warning == (
+        "activeperc-train: warning: method 'ia2c' does not use epsilon (read by meta only), "
+        "curriculum_fraction (read by curriculum only)"
+    )
+    args = cli.build_parser().parse_args(["--epsilon", "0.1", "--alpha", "0.2", "--curriculum-fraction", "0.5"])
+    warning = cli.unused_options_warning(args, cli.config_from_args(args))
+    assert warning.endswith("method 'meta' does not use curriculum_fraction (read by curriculum only)")
+    args = cli.build_parser().parse_args(["--method", "fixed_forward", "--looker-hold-prob", "0.5", "--looker-lr", "1"])
+    warning = cli.unused_options_warning(args, cli.config_from_args(args))
+    assert warning.endswith(
+        "looker_hold_prob (read by meta, ia2c, joint and curriculum only), looker_lr (read by meta and ia2c only)"
+    )
+    assert cli.unused_options_warning(cli.build_parser().parse_args(["--epsilon", "0.1"]), TrainConfig()) is None
+
+
+def test_method_only_options_match_their_docs():
+    """A field documented as one method's ("'meta': ...") is listed as that method's alone."""
+    from activeperc_env.config import field_docs
+    from activeperc_rl.config import METHOD_OPTIONS
+
+    docs = field_docs(TrainConfig)
+    documented = {name: doc.split("'")[1] for name, doc in docs.items() if doc.split()[0][-2:] == "':"}
+    assert len(documented) == 7  # epsilon, alpha, ..., curriculum_fraction
+    for name, method in documented.items():
+        assert METHOD_OPTIONS[name] == (method,), name
+
+
 def test_preset_numbers_in_exponent_notation(tmp_path):
     """PyYAML reads 3e-5 as a string (YAML 1.1); presets read it as the number everyone means."""
     preset = tmp_path / "p.yaml"
