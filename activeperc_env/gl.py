@@ -28,6 +28,10 @@ MESA_DRIVER_HELP = (
     "'apt-get install libgl1-mesa-dri' on Debian/Ubuntu."
 )
 
+# MUJOCO_GL's values on Linux, as MuJoCo reads them (lower-cased, stripped); any other fails at ``import mujoco``
+RENDERING_OFF = ("disable", "disabled", "off", "false", "0")
+LINUX_BACKENDS = ("", "egl", "osmesa", "glfw", "glx", "enable", "enabled", "on", "true", "1", *RENDERING_OFF)
+
 
 def choose_backend() -> None:
     """Set ``MUJOCO_GL=egl`` when it is unset and no display can be opened (none named, or a stale ``DISPLAY``
@@ -36,6 +40,12 @@ def choose_backend() -> None:
     if sys.platform in ("darwin", "win32"):
         return
     backend = os.environ.get("MUJOCO_GL", "").lower().strip()
+    if backend not in LINUX_BACKENDS:  # MuJoCo's own error names the value, not what to use instead
+        raise RuntimeError(
+            f"MUJOCO_GL={os.environ['MUJOCO_GL']!r} is not one of MuJoCo's OpenGL backends: use egl (headless; "
+            "chosen for you when MUJOCO_GL is unset and there is no display), osmesa (headless, slower), or glfw "
+            "or glx (with a display)"
+        )
     if not backend:
         if missing_display() is None:
             return
@@ -172,6 +182,11 @@ def gl_context(width: int, height: int) -> Context:
     if forked_after_gl():
         raise RuntimeError(FORK_HELP)
     backend = os.environ.get("MUJOCO_GL", "").lower().strip()
+    if backend in RENDERING_OFF:
+        raise RuntimeError(
+            f"MUJOCO_GL={os.environ['MUJOCO_GL']!r} turns MuJoCo's rendering off, and every observation here is an "
+            "image: set MUJOCO_GL=egl, or leave it unset (EGL is chosen when there is no display)"
+        )
     if backend == "egl":
         from mujoco.egl import GLContext
     elif backend == "osmesa":

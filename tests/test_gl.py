@@ -81,3 +81,21 @@ def test_egl_without_mesas_drivers_says_what_to_install(monkeypatch):
     monkeypatch.setattr(mujoco.egl, "GLContext", no_device)
     with pytest.raises(ImportError, match="Cannot initialize a EGL device display. .*apt-get install libgl1-mesa-dri"):
         gl.gl_context(8, 8)
+
+
+def test_an_unknown_backend_names_the_ones_to_use(monkeypatch):
+    monkeypatch.setenv("MUJOCO_GL", "EGl2")
+    with pytest.raises(RuntimeError, match="MUJOCO_GL='EGl2' is not one of MuJoCo's OpenGL backends: use egl"):
+        gl.choose_backend()
+    monkeypatch.setenv("MUJOCO_GL", " EGL ")  # MuJoCo reads it lower-cased and stripped
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: f"lib{name}.so")
+    gl.choose_backend()
+
+
+@pytest.mark.parametrize("value", ["disable", "off", "0"])
+def test_rendering_turned_off_says_to_use_egl(monkeypatch, value):
+    """MuJoCo then has no context to make; the window-system error that came instead blamed a missing display."""
+    monkeypatch.setenv("MUJOCO_GL", value)
+    gl.choose_backend()  # physics without rendering is MuJoCo's business; our first view is ours
+    with pytest.raises(RuntimeError, match=f"MUJOCO_GL='{value}' turns MuJoCo's rendering off.*set MUJOCO_GL=egl"):
+        gl.gl_context(8, 8)
