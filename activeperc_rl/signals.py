@@ -2,10 +2,13 @@
 
 A run stops cleanly (it finishes its iteration and saves a checkpoint) on Ctrl-C (SIGINT), on SIGTERM (what
 ``kill``, ``docker stop``, systemd and batch schedulers send before they kill a job) and on SIGHUP, what a closing
-terminal or a dropped SSH session sends, unless the process ignores SIGHUP (``nohup`` starts it so; it then goes
-on ignoring it). After a SIGHUP the terminal is gone and writing to it fails, and so is any program the run
-wrote to through a pipe from that terminal (``activeperc-train | tee train.log``: the terminal's SIGHUP stops
-``tee`` too), so the run must write elsewhere before it prints again: :class:`Terminal` remembers which standard
+terminal or a dropped SSH session sends, unless the process was started ignoring the signal, as ``nohup`` starts
+it for SIGHUP and a shell without job control (a script's) starts a background job for SIGINT: it then goes on
+ignoring it, as Python itself does with SIGINT.
+
+After a SIGHUP the terminal is gone and writing to it fails, and so is any program the run wrote to through a
+pipe from that terminal (``activeperc-train | tee train.log``: the terminal's SIGHUP stops ``tee`` too), so the
+run must write elsewhere before it prints again: :class:`Terminal` remembers which standard
 streams wrote to a terminal or a pipe (known only before the hangup: a hung-up terminal no longer answers as
 one) and points them at ``/dev/null``.
 """
@@ -21,11 +24,11 @@ from contextlib import AbstractContextManager, contextmanager
 
 
 def stop_signals() -> list[signal.Signals]:
-    """SIGINT, SIGTERM and, unless this process ignores it, SIGHUP."""
-    numbers = [signal.SIGINT, signal.SIGTERM]
-    if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:
-        numbers.append(signal.SIGHUP)
-    return numbers
+    """SIGINT, SIGTERM and SIGHUP, less those this process ignores: it was started so that they do not stop it
+    (``nohup`` ignores SIGHUP; a shell without job control, as a script's, starts ``cmd &`` with SIGINT ignored, so
+    that the terminal's Ctrl-C is not for it)."""
+    numbers = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+    return [number for number in numbers if signal.getsignal(number) is not signal.SIG_IGN]
 
 
 class Terminal:

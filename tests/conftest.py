@@ -67,8 +67,10 @@ def assert_same_view(a, b):
     assert (diff > 0).mean() < 1e-3
 
 
-def default_sighup() -> None:
-    """SIGHUP at its default in a child process (a ``preexec_fn``), also when the tests run under ``nohup``."""
+def default_stop_signals() -> None:
+    """SIGINT and SIGHUP at their defaults in a child process (a ``preexec_fn``), also when the tests run under
+    ``nohup`` or as a background job of a shell without job control (which ignore them, and a child inherits that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
@@ -91,7 +93,7 @@ class PseudoTerminal:
             stdout=self._child_side,
             stderr=self._child_side,
             start_new_session=True,
-            preexec_fn=default_sighup,
+            preexec_fn=default_stop_signals,
         )
         os.close(self._child_side)
         return process

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PseudoTerminal
+from conftest import PseudoTerminal, default_stop_signals
 
 from activeperc_rl.config import TrainConfig, load_yaml
 
@@ -153,10 +153,8 @@ def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
     runs = tmp_path / "runs"
     argv = [sys.executable, str(FIG1 / "sweep.py"), "--only", "joint_fov60", "--seeds", "0", "--frames", "100000"]
     argv += ["--runs", str(runs), "--results", str(tmp_path / "results"), *TINY]
-    # SIGINT at its default in the sweep, also when pytest itself runs with it ignored (as a background job)
-    default_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
     process = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=default_sigint
+        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=default_stop_signals
     )
     metrics = runs / "joint_fov60" / "seed0" / "metrics.csv"
     deadline = time.time() + 120
@@ -194,7 +192,7 @@ def test_a_second_stop_is_passed_on_to_the_runs(sweep, capsys):
 
     runs = [Run(), Run()]
     sweep._stop(runs)
-    assert [run.signals for run in runs] == [[signal.SIGINT, signal.SIGINT]] * 2
+    assert [run.signals for run in runs] == [[signal.SIGTERM, signal.SIGTERM]] * 2
     assert "stopped again: the runs abort now" in capsys.readouterr().out
 
 

@@ -13,7 +13,7 @@ import imageio.v3 as iio
 import pytest
 import torch
 import yaml
-from conftest import PseudoTerminal, assert_same_run, default_sighup
+from conftest import PseudoTerminal, assert_same_run, default_stop_signals
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
@@ -426,7 +426,9 @@ def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
 def test_ctrl_c_saves_and_resume_finishes(tmp_path):
     out = tmp_path / "run"
     command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=default_stop_signals
+    )
     wait_for_rows(out, 3)
     process.send_signal(signal.SIGINT)
     output, _ = process.communicate(timeout=120)
@@ -443,14 +445,19 @@ def test_ctrl_c_saves_and_resume_finishes(tmp_path):
     assert not [p for p in os.listdir(out) if p.endswith(".tmp")]
 
 
-def test_sighup_stops_a_run_unless_the_process_ignores_it():
-    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup starts a process
+def test_sighup_and_sigint_stop_a_run_unless_the_process_ignores_them():
+    previous = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGHUP)}
     try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)  # as nohup starts a process
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         assert stop_signals() == [signal.SIGINT, signal.SIGTERM]
         signal.signal(signal.SIGHUP, signal.SIG_DFL)
         assert stop_signals() == [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a shell without job control starts 'cmd &'
+        assert stop_signals() == [signal.SIGTERM, signal.SIGHUP]
     finally:
-        signal.signal(signal.SIGHUP, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def test_a_hangup_saves_a_checkpoint_though_the_terminal_is_gone(tmp_path):
@@ -477,7 +484,7 @@ def test_a_hangup_saves_a_checkpoint_though_the_tee_it_wrote_to_is_gone(tmp_path
     command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
     tee, into_tee = os.pipe()
     process = subprocess.Popen(
-        command, stdout=into_tee, stderr=into_tee, start_new_session=True, preexec_fn=default_sighup
+        command, stdout=into_tee, stderr=into_tee, start_new_session=True, preexec_fn=default_stop_signals
     )
     os.close(into_tee)
     wait_for_rows(out, 3)
@@ -488,25 +495,29 @@ def test_a_hangup_saves_a_checkpoint_though_the_tee_it_wrote_to_is_gone(tmp_path
     assert state["frames"] == int(read_metrics(out)[-1]["frames"]) < 10_000_000
 
 
-def test_a_run_under_nohup_goes_on_after_a_hangup(tmp_path):
+def ignore_hangups_and_ctrl_c() -> None:
+    """What ``nohup cmd &`` in a script (a shell without job control) does to the command (a ``preexec_fn``)."""
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def test_a_run_under_nohup_in_the_background_goes_on_after_a_hangup_and_a_ctrl_c(tmp_path):
+    """It stops on SIGTERM. (SIGINT in the final evaluation was ignored before, in training it stopped the run.)"""
     out = tmp_path / "run"
     command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000"]
     process = subprocess.Popen(
-        command,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),  # what nohup does
+        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=ignore_hangups_and_ctrl_c
     )
     wait_for_rows(out, 2)
     process.send_signal(signal.SIGHUP)
+    process.send_signal(signal.SIGINT)
     rows = rows_logged(out)
     wait_for_rows(out, rows + 3)
     assert process.poll() is None and rows_logged(out) >= rows + 3  # still training
-    process.send_signal(signal.SIGINT)
+    process.send_signal(signal.SIGTERM)
     output, _ = process.communicate(timeout=120)
-    assert process.returncode == 0 and "checkpoint saved" in output, output
-    assert "SIGHUP" not in output
+    assert process.returncode == 0 and "SIGTERM: finishing this iteration" in output, output
+    assert "checkpoint saved" in output and "SIGHUP" not in output and "Ctrl-C" not in output
 
 
 def test_eval_cli(tmp_path, capsys):

@@ -10,7 +10,7 @@ import time
 
 import pytest
 import torch
-from conftest import assert_same_run, default_sighup
+from conftest import assert_same_run, default_stop_signals
 from tensordict.nn import TensorDictSequential
 from test_train import TINY, read_metrics, run_cli, wait_for_rows
 from torch import nn
@@ -164,7 +164,7 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
         stderr=subprocess.STDOUT,
         text=True,
         start_new_session=True,
-        preexec_fn=default_sighup,
+        preexec_fn=default_stop_signals,
     )
     wait_for_rows(out, 12, timeout=240)  # the switch to obstacles comes after 10 rows
     os.killpg(process.pid, stop)

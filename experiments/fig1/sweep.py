@@ -334,10 +334,11 @@ def run_sweep(
 
 
 def _stop(processes: list[subprocess.Popen]) -> None:
-    """Pass a stop on to the runs and wait for them; a second stop is passed on too (the runs then abort at once,
-    their last checkpoints whole)."""
+    """Pass a stop on to the runs (as SIGTERM: they may have been started ignoring SIGINT, as our own process may
+    have been) and wait for them; a second stop is passed on too (the runs then abort at once, their last
+    checkpoints whole)."""
     for process in processes:
-        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGTERM)
     while any(process.poll() is None for process in processes):
         try:
             for process in processes:
@@ -346,7 +347,7 @@ def _stop(processes: list[subprocess.Popen]) -> None:
             print("\nsweep: stopped again: the runs abort now, without a new checkpoint", flush=True)
             for process in processes:
                 if process.poll() is None:
-                    process.send_signal(signal.SIGINT)
+                    process.send_signal(signal.SIGTERM)
 
 
 def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra) -> subprocess.Popen:
