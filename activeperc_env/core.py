@@ -272,7 +272,7 @@ class Simulator:
         if self._views is None:
             cfg = self.config
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
-        # the rasteriser may shade a pixel one level differently in another tile: a view is reused only where
+        # the rasteriser rounds a view a little differently in another tile: a view is reused only where
         # it was drawn in the tile this call would draw it in, and a stale one is drawn again in that tile
         stale = self._tiles[ids] != tiles
         if stale.any():

@@ -78,8 +78,9 @@ class TiledRenderer:
             mocap_pos: (n, nmocap, 3) positions of the goal and occluders.
             out: optional (n, height, width, 3) uint8 array to write into.
             tiles: optional (n,) distinct tiles (below ``views_per_pass``) to draw the views in, all in one
-                pass; by default view ``k`` is drawn in tile ``k % views_per_pass``. The rasteriser may shade
-                a pixel one level differently in another tile, so the tile is part of what a view looks like.
+                pass; by default view ``k`` is drawn in tile ``k % views_per_pass``. The rasteriser rounds
+                edges and shades a little differently in another tile (pixels one level darker or lighter, rarely
+                an edge pixel of another colour), so the tile is part of what a view looks like.
 
         Returns:
             (n, height, width, 3) uint8 images, top row first.

@@ -18,6 +18,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("untrained_looker.py", ["--hold-prob", "1.5"], "--hold-prob must be in [0, 1), got 1.5"),
         ("goal_visibility.py", ["--min-pixels", "-1"], "--min-pixels must be >= 1, got -1"),
         ("goal_visibility.py", ["--batch", "0"], "--batch must be >= 1, got 0"),
+        ("tile_shading.py", ["--rooms", "0"], "--rooms must be >= 1, got 0"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -26,3 +27,15 @@ def test_a_bad_argument_is_named(script, args, message):
     )
     assert done.returncode == 2, done.stderr
     assert message in done.stderr and "Traceback" not in done.stderr
+
+
+def test_tile_shading_compares_every_tile_with_one_room():
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "tile_shading.py"), "--episodes", "1", "--cycles", "10", "--rooms", "4"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("40 views (4 tiles, 10 states, 80x60 pixels) against one room's")
+    assert "views that differ at all:" in done.stdout and "by more than one level" in done.stdout
