@@ -6,7 +6,7 @@ import warnings
 
 import pytest
 import torch
-from conftest import goal_seeking_move
+from conftest import assert_same_view, goal_seeking_move
 from tensordict.nn import ProbabilisticTensorDictModule, ProbabilisticTensorDictSequential, TensorDictModule
 from torchrl.collectors import Collector
 from torchrl.envs import PettingZooWrapper
@@ -222,6 +222,20 @@ def test_collector_set_seed_then_reset_repeats_the_layouts():
         return first
 
     assert torch.equal(layouts(7), layouts(7)) and not torch.equal(layouts(7), layouts(8))
+
+
+def test_a_rooms_episode_seed_replays_it_in_a_one_room_env():
+    """make_env seeds its rooms from SeedSequence streams, not with the base seed itself: ``episode_seeds`` says
+    which layout each room plays, and a PettingZoo env reset with it plays the same start (docs/env.md)."""
+    env = make_env(num_envs=3, seed=5)
+    images = env.reset()["mover", "observation", "image"]
+    assert len(set(env.episode_seeds.tolist()) | {5}) == 4
+    for room, seed in enumerate(env.episode_seeds.tolist()):
+        one = activeperc_env.parallel_env()
+        observations, _ = one.reset(seed=seed)
+        assert_same_view(observations["mover_0"]["image"], images[room].numpy())
+        one.close()
+    env.close()
 
 
 def test_e1_e2_share_reset_seeds():
