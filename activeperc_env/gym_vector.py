@@ -167,6 +167,11 @@ class _SingleAgentVectorEnv(VectorEnv):
         if seed is None:
             return [None] * self.num_envs
         if is_int(seed):
+            if not 0 <= seed <= MAX_SEED - (self.num_envs - 1):
+                raise ValueError(
+                    f"seed={int(seed)} is invalid: room i gets seed + i, so with {self.num_envs} rooms it must be an "
+                    f"int in [0, 2**63 - {self.num_envs}]"
+                )
             seeds = [int(seed) + i for i in range(self.num_envs)]
         elif isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == self.num_envs:
             seeds = [int(s) if is_int(s) else s for s in seed]

@@ -125,8 +125,12 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match=r"seed -1 of room 1 is invalid"):
         vec.reset(seed=[1, -1])
     np.testing.assert_array_equal(vec.unwrapped.sim.state(), first)  # no room was reseeded
-    with pytest.raises(ValueError, match=r"seed 9223372036854775808 of room 1 is invalid"):
+    with pytest.raises(ValueError, match=r"seed=9223372036854775807 is invalid: room i gets seed \+ i, so with 2"):
         vec.reset(seed=2**63 - 1)
+    with pytest.raises(ValueError, match=r"seed=-1 is invalid: .* an int in \[0, 2\*\*63 - 2\]"):
+        vec.reset(seed=np.int64(-1))
+    np.testing.assert_array_equal(vec.unwrapped.sim.state(), first)
+    vec.reset(seed=2**63 - 2)  # the largest: room 1 gets 2**63 - 1
     with pytest.raises(TypeError, match=r"reset_mask.*is invalid: expected a \(2,\) bool array"):
         vec.reset(options={"reset_mask": [True, False]})
     with pytest.raises(ValueError, match=r"reset_mask'\] has shape \(3,\)"):
