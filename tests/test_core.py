@@ -153,6 +153,15 @@ def test_unseeded_resets_continue_the_seeded_stream():
     assert not np.array_equal(a.goal_xy(), c.goal_xy())
 
 
+def test_rooms_never_seeded_draw_layouts_of_their_own():
+    """Without a seed, every room of every simulator starts from fresh entropy, as Gymnasium's envs do."""
+    a, b = Simulator(num_envs=3), Simulator(num_envs=3)
+    a.reset()
+    b.reset()
+    goals = [tuple(sim.goal_xy(i)) for sim in (a, b) for i in range(3)]
+    assert len(set(goals)) == 6
+
+
 @pytest.mark.parametrize("bad", [3, -1, [0, 1], 1.5, "left", True])
 def test_bad_actions_name_the_agent_and_its_space(bad):
     sim = Simulator()

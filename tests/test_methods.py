@@ -272,3 +272,58 @@ def test_a_collector_that_fails_to_start_closes_its_env(monkeypatch):
     with pytest.raises(RuntimeError, match="collector refused"):
         method.start()
     assert len(made) == 1 and made[0].is_closed
+
+
+def _parameters(module: nn.Module) -> list[torch.Tensor]:
+    return [p.detach().clone() for p in module.parameters()]
+
+
+def test_a_meta_iteration_soft_updates_phi1_towards_the_new_phi2_and_copies_w1_to_w2():
+    """Steps 4 and 6 of Meta.iterate, where they are called: phi1 <- alpha phi2 + (1 - alpha) phi1 with the phi2 of
+    this iteration's REINFORCE step, and w2 = w1 after the mover's A2C steps."""
+    config = TrainConfig(
+        num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, alpha=0.5, looker_lr=0.01,
+        looker_entropy_coeff=0.01,  # a gradient on phi2 from the first iteration on
+    )  # fmt: skip
+    meta = make_method(config, torch.device("cpu"))
+    phi1, phi2, critic = _parameters(meta.phi1), _parameters(meta.phi2), _parameters(meta.critic)
+    try:
+        meta.iterate()
+    finally:
+        meta.close()
+    new_phi2 = _parameters(meta.phi2)
+    assert any(not torch.equal(a, b) for a, b in zip(phi2, new_phi2, strict=True))  # the REINFORCE step
+    for before, after, source in zip(phi1, _parameters(meta.phi1), new_phi2, strict=True):
+        assert torch.allclose(after, 0.5 * source + 0.5 * before)
+    assert any(not torch.equal(a, b) for a, b in zip(critic, _parameters(meta.critic), strict=True))  # A2C steps
+    for key, value in meta.critic.state_dict().items():
+        assert torch.equal(meta.w2.state_dict()[key], value), key
+
+
+@pytest.mark.parametrize("shared_seeds", [True, False])
+def test_e2_explores_with_epsilon_on_e1s_layouts_unless_told_otherwise(shared_seeds):
+    config = TrainConfig(num_envs=4, rollout_length=8, channels=(4,), hidden_size=8, epsilon=1.0,
+                         shared_seeds=shared_seeds)  # fmt: skip
+    meta = make_method(config, torch.device("cpu"))
+    try:
+        d1, d2 = meta._next(meta.e1), meta._next(meta.e2)
+        same_layouts = (meta.e1.env.episode_seeds == meta.e2.env.episode_seeds).all()
+    finally:
+        meta.close()
+    assert (d1.get(("next", "looker", "action")) == 1).all()  # E1: the untrained phi1's argmax holds
+    holds = (d2.get(("next", "looker", "action")) == 1).float().mean()
+    assert 0.1 < holds < 0.6  # E2 at epsilon 1: uniformly random looks, a third of them 'hold'
+    assert same_layouts == shared_seeds
+
+
+def test_curriculum_trains_in_the_empty_room_then_with_the_obstacles():
+    config = TrainConfig(method="curriculum", frames=100, curriculum_fraction=0.3, num_envs=4, rollout_length=8,
+                         channels=(4,), hidden_size=8)  # fmt: skip
+    curriculum = make_method(config, torch.device("cpu"))
+    try:
+        assert curriculum.switch_at == 30 and curriculum.collector.env.config.num_obstacles == 0
+        logged = [curriculum.iterate().losses["curriculum/obstacles"] for _ in range(2)]  # 32 frames each
+        assert curriculum.collector.env.config.num_obstacles == 3
+    finally:
+        curriculum.close()
+    assert logged == [0.0, 3.0]

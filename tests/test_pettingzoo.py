@@ -78,6 +78,12 @@ def test_reward_arrives_after_the_move_and_is_shared_by_config(looker_reward, sh
     env.step(1)
     assert env.terminations[MOVER] and env.terminations[LOOKER]
     assert env.last()[1] == pytest.approx(expected), "the mover's last() carries its reward"
+    parallel = activeperc_env.parallel_env(num_obstacles=0, looker_reward=looker_reward)
+    parallel.reset(seed=3)
+    for move in moves:
+        _, rewards, terminations, _, _ = parallel.step({MOVER: move, LOOKER: 1})
+    assert terminations == {MOVER: True, LOOKER: True}
+    assert rewards == {MOVER: expected, LOOKER: expected if shared else 0.0}
 
 
 def test_bad_action_names_agent_and_space():

@@ -58,6 +58,27 @@ def test_map_shows_goal_and_occluders():
     assert red.sum() > 50 and blue.sum() > 50
 
 
+def test_map_is_north_up_with_the_view_cone_where_the_camera_looks():
+    """The map's camera sees 4.6 m of the room's height on 240 rows, centred on the room, +x right and +y up."""
+    sim = Simulator(EnvConfig(pan_step=90.0))
+    sim.reset(seeds=[3])
+    sim.look([2])  # the camera turns 90 degrees to the right of the heading
+
+    def pixel(xy):  # (row, column) of a point of the floor
+        scale = 240 / 4.6
+        return np.array([120 - xy[1] * scale, 160 + xy[0] * scale])
+
+    image = sim.render_map().astype(int)
+    red = (image[..., 0] > 150) & (image[..., 1] < 60) & (image[..., 2] < 60)
+    assert np.abs(np.argwhere(red).mean(axis=0) - pixel(sim.goal_xy())).max() < 3
+    xy, heading, pan = sim.pose()
+    assert pan == pytest.approx(-np.pi / 2)
+    orange = (image[..., 0] > 200) & (image[..., 1] > 90) & (image[..., 1] < 180) & (image[..., 2] < 60)
+    along = np.argwhere(orange).mean(axis=0) - pixel(xy)  # from the robot to the middle of the cone's edges
+    look = np.array([-np.sin(heading + pan), np.cos(heading + pan)])  # (rows, columns) per metre, up to the scale
+    assert orange.sum() > 20 and along @ look / np.linalg.norm(along) > 0.9
+
+
 FORK_SCRIPT = """
 import multiprocessing, sys
 from activeperc_env import Simulator

@@ -19,6 +19,7 @@ from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
 from activeperc_rl.checkpoint import MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
+from activeperc_rl.envs import make_env
 from activeperc_rl.rundir import claim_run_dir, new_run_dir
 from activeperc_rl.signals import stop_signals
 
@@ -170,11 +171,14 @@ def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row
     out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
     (out / ".checkpoint.pt.k1ll3d.pt").write_bytes(b"half a checkpoint")
     with open(out / "metrics.csv", "a") as f:
-        f.write("9")  # the start of the row being written (frames 96) when the process was killed
+        f.write("96,999,1.0,1.0,0.0,0.0,0\n")  # logged after the last checkpoint (64 frames)
+        f.write("1")  # the start of the row being written (frames 128) when the process was killed
     assert cli.main(["--out", str(out), "--resume", "--frames", "128", "--no-progress"]) == 0
     assert not (out / ".checkpoint.pt.k1ll3d.pt").exists()
-    frames = [int(r["frames"]) for r in read_metrics(out)]
+    rows = read_metrics(out)
+    frames = [int(r["frames"]) for r in rows]
     assert frames == sorted(set(frames)) and frames[-1] >= 128
+    assert "999" not in [r["iteration"] for r in rows]  # the checkpoint's run goes on from 64 frames
 
 
 def test_a_metrics_log_with_a_bad_row_is_named(tmp_path):
@@ -520,6 +524,23 @@ def test_a_run_under_nohup_in_the_background_goes_on_after_a_hangup_and_a_ctrl_c
     assert "checkpoint saved" in output and "SIGHUP" not in output and "Ctrl-C" not in output
 
 
+def test_the_random_baseline_plays_the_random_policy(tmp_path, capsys, monkeypatch):
+    """The final evaluation scores the learned policy, then the random one; ``activeperc-eval --random`` the latter."""
+    played, real = [], evaluate.evaluate
+
+    def spy(config, mover_policy=None, looker=None, *args, **kwargs):
+        played.append("random" if mover_policy is None and looker is None else "learned")
+        return real(config, mover_policy, looker, *args, **kwargs)
+
+    monkeypatch.setattr(evaluate, "evaluate", spy)
+    monkeypatch.setattr(train_module, "evaluate", spy)
+    out = run_cli(tmp_path, "--method", "ia2c", "--frames", "64", "--eval-episodes", "2")
+    assert played == ["learned", "random"]
+    assert evaluate.main([str(out), "--episodes", "2", "--random", "--json"]) == 0
+    assert evaluate.main([str(out), "--episodes", "2", "--json"]) == 0
+    assert played == ["learned", "random", "random", "learned"]
+
+
 def test_eval_cli(tmp_path, capsys):
     out = run_cli(tmp_path, "--method", "meta", "--frames", "256", "--eval-episodes", "0")
     capsys.readouterr()
@@ -638,15 +659,16 @@ def test_eval_checks_the_video_path_before_it_plays(tmp_path, capsys, monkeypatc
         assert named in capsys.readouterr().err
 
 
-def test_eval_is_reproducible_and_held_out(tmp_path, capsys):
+def test_eval_is_reproducible_and_held_out(tmp_path, capsys, monkeypatch):
     config = TrainConfig(env={"max_cycles": 10})
+    made = []
+    monkeypatch.setattr(evaluate, "make_env", lambda *a, **kw: made.append(make_env(*a, **kw)) or made[-1])
     a = evaluate.evaluate(config, episodes=6, seed=4)
+    assert len(made) == 1 and (made[0].episode_seeds % 2 == 1).all()  # the rooms played held-out layouts
     assert capsys.readouterr().err == ""
     b = evaluate.evaluate(config, episodes=6, seed=4, progress=True)  # the bar changes nothing but stderr
     assert a == b and a["episodes"] == 6 and a["mean_length"] <= 10
     assert "evaluating" in capsys.readouterr().err
-    from activeperc_rl.envs import make_env
-
     train_env, eval_env = make_env(3, seed=0), make_env(3, seed=0, split="eval")
     train_env.reset(), eval_env.reset()
     assert (train_env.episode_seeds % 2 == 0).all() and (eval_env.episode_seeds % 2 == 1).all()
