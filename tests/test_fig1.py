@@ -106,14 +106,23 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     assert sweep.main([*base, "--frames", "64", *TINY]) == 0  # everything is done: nothing runs
     assert "2 done, 0 to run" in capsys.readouterr().out
 
-    assert sweep.main([*base, "--frames", "160", *TINY]) == 0  # a larger budget continues both runs
+    with pytest.raises(SystemExit):  # a results folder holds one budget
+        sweep.main([*base, "--frames", "160", *TINY])
+    assert "holds results of other settings (frames 64 there, 160 here)" in capsys.readouterr().err
+    saved = (results / "summary.csv").read_text()
+    bigger = [a if a != str(results) else str(tmp_path / "results160") for a in base]
+    assert sweep.main([*bigger, "--frames", "160", *TINY]) == 0  # a larger budget continues both runs
     assert "--resume" in (runs / "fixed_forward_fov60" / "seed3" / "train.log").read_text()
-    extended = read_csv(results / "summary.csv")
+    extended = read_csv(tmp_path / "results160" / "summary.csv")
     assert all(int(r["frames"]) >= 160 for r in extended)
     frames = [int(r["frames"]) for r in read_csv(runs / "fixed_forward_fov60" / "seed3" / "metrics.csv")]
     assert frames == sorted(frames) and len(set(frames)) == len(frames)
     capsys.readouterr()
-    more = [a if a != "2" else "3" for a in base]  # --eval-episodes 3: the runs' evaluations of 2 do not count
+    assert sweep.main([*base, "--frames", "64", *TINY]) == 1  # the run directories now hold 160-frame runs
+    assert "skip fixed_forward_fov60_seed3: its run directory was continued to 160 frames" in capsys.readouterr().out
+    assert (results / "summary.csv").read_text() == saved  # the 64-frame results are kept as they were
+    more = [a if a != "2" else "3" for a in bigger]  # --eval-episodes 3: the runs' evaluations of 2 do not count
+    more[more.index(str(tmp_path / "results160"))] = str(tmp_path / "results160e3")
     assert sweep.main([*more, "--frames", "160", *TINY]) == 0
     assert "0 done, 2 to run" in capsys.readouterr().out
     assert sweep.is_finished(runs / "fixed_forward_fov60" / "seed3", 160, 3)
@@ -194,6 +203,39 @@ def test_a_second_stop_is_passed_on_to_the_runs(sweep, capsys):
     sweep._stop(runs)
     assert [run.signals for run in runs] == [[signal.SIGTERM, signal.SIGTERM]] * 2
     assert "stopped again: the runs abort now" in capsys.readouterr().out
+
+
+def test_an_error_in_the_sweep_stops_the_runs_it_started(sweep, tmp_path, monkeypatch):
+    """A results file the sweep cannot update when a run finishes: the other run is stopped, not left unwatched."""
+
+    class Run:
+        def __init__(self, finished):
+            self.finished, self.signals, self.returncode = finished, [], 0
+
+        def poll(self):
+            return 0 if self.finished or self.signals else None
+
+        def send_signal(self, number):
+            self.signals.append(number)
+
+        def wait(self):
+            return 0
+
+    quick, slow = Run(finished=True), Run(finished=False)
+    started = iter([quick, slow])
+    checks = iter([False, False])  # neither run is finished when the sweep starts; then the quick one is
+
+    def fail(*args):
+        raise ValueError("the disk is full")
+
+    monkeypatch.setattr(sweep, "_start", lambda *args: next(started))
+    monkeypatch.setattr(sweep, "POLL_S", 0.0)
+    monkeypatch.setattr(sweep, "is_finished", lambda *args: next(checks, True))
+    monkeypatch.setattr(sweep, "export_run", fail)
+    tasks = [sweep.Task(FIG1 / "configs" / name, 0) for name in ("joint_fov60.yaml", "ia2c_fov60.yaml")]
+    with pytest.raises(ValueError, match="the disk is full"):
+        sweep.run_sweep(tasks, 64, tmp_path / "runs", tmp_path / "results" / "summary.csv", 2, [None, None])
+    assert slow.signals == [signal.SIGTERM] and quick.signals == []
 
 
 def test_a_hangup_stops_the_runs_as_ctrl_c_does(tmp_path):
@@ -302,6 +344,44 @@ def test_a_run_counts_as_finished_only_with_an_evaluation_of_its_last_frames(swe
     task = sweep.Task(FIG1 / "configs" / "fixed_forward_fov60.yaml", 0)
     command = sweep.train_command(task, run, 2000, 100, [])
     assert command[command.index("--frames") + 1] == "16640" and "--resume" in command
+
+
+def test_damaged_results_are_named_before_any_run_starts(sweep, aggregate, tmp_path, capsys):
+    results = tmp_path / "results"
+    results.mkdir()
+    argv = ["--only", "joint_fov60", "--seeds", "0", "--runs", str(tmp_path / "runs"), "--results", str(results)]
+    lines = open(FIG1 / "results" / "summary.csv").readlines()
+    cells = lines[2].split(",")
+    (results / "summary.csv").write_text("".join(lines[:2]) + ",".join([*cells[:3], "300k", *cells[4:]]))
+    with pytest.raises(SystemExit):
+        sweep.main([*argv, "--frames", "64", *TINY])  # tiny, should it ever start
+    assert "summary.csv, line 3: invalid literal for int() with base 10: '300k'" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists() and not (results / "sweep.json").exists()
+    (results / "summary.csv").write_text("".join(lines[:2]))
+    (results / "sweep.json").write_text("{")
+    with pytest.raises(SystemExit):
+        sweep.main([*argv, "--frames", "300000", "--dry-run"])
+    assert "sweep.json is damaged" in capsys.readouterr().err
+    (results / "sweep.json").unlink()
+    run = tmp_path / "runs" / "joint_fov60" / "seed0"
+    run.mkdir(parents=True)
+    (run / "eval.json").write_text('{"frames": 3')
+    with pytest.raises(SystemExit):
+        sweep.main([*argv, "--frames", "300000", "--dry-run"])
+    assert "eval.json is not an evaluation activeperc-train wrote" in capsys.readouterr().err
+    # a curve cut short is refused by aggregate, which writes nothing into docs/ for a folder of its own
+    (results / "summary.csv").write_text((FIG1 / "results" / "summary.csv").read_text())
+    (results / "runs").mkdir()
+    for curve in (FIG1 / "results" / "runs").iterdir():
+        (results / "runs" / curve.name).write_text(curve.read_text())
+    assert aggregate.main(["--results", str(results)]) == 0
+    assert (results / "fig1_curves.png").stat().st_size > 0
+    assert "| 60 | meta_eps0.1 | 0,1,2,3,4 |" in capsys.readouterr().out
+    cut = results / "runs" / "joint_fov60_seed0.csv"
+    cut.write_text("".join(cut.read_text().splitlines(keepends=True)[:50]))
+    with pytest.raises(SystemExit):
+        aggregate.main(["--results", str(results)])
+    assert "joint_fov60_seed0.csv ends at" in capsys.readouterr().err
 
 
 def test_aggregate_refuses_to_average_budgets(aggregate, tmp_path, capsys):

@@ -17,6 +17,9 @@ Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.c
 
     python experiments/fig1/aggregate.py
     python experiments/fig1/aggregate.py --ablations
+
+With ``--results DIR`` (another sweep's folder) the table is printed and the figure written into ``DIR``; the
+committed document and figures change only with ``--doc`` and ``--figures``.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from activeperc_rl.atomic import atomic_path  # noqa: E402
 
 ROOT = HERE.parent.parent
 DOC = ROOT / "docs" / "reproduction.md"
+RESULTS = HERE / "results"  # the committed results, whose table and figures are docs/reproduction.md's
 GRID_POINTS = 100
 FULL_WINDOW = 100  # curves start once this many training episodes have finished: metrics.csv averages the last 100
 # Two-sided 95 % critical values of Student's t by degrees of freedom (standard statistical tables).
@@ -74,10 +78,11 @@ def mean_ci(values) -> tuple[float, float]:
     return float(values.mean()), float(ci_half_width(values))
 
 
-def read_curve(path: Path) -> dict[str, np.ndarray]:
+def read_curve(path: Path, frames: int) -> dict[str, np.ndarray]:
     """A run's exported curve as arrays, from the first row whose average spans ``FULL_WINDOW`` episodes.
 
-    A run too short to finish that many episodes gives empty arrays; a missing or empty curve is a ``ValueError``.
+    A run too short to finish that many episodes gives empty arrays; a missing or empty curve, or one that does
+    not end at the run's ``frames`` (its summary row's: cut short, or another run's), is a ``ValueError``.
     """
     if not path.is_file():
         raise ValueError(f"{path} does not exist: sweep.py exports it when the run finishes (use the same --results)")
@@ -85,7 +90,15 @@ def read_curve(path: Path) -> dict[str, np.ndarray]:
         rows = list(csv.DictReader(file))
     if not rows:
         raise ValueError(f"{path} has no rows")
-    columns = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+    try:
+        columns = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{path}: not a curve sweep.py wrote ({error})") from None
+    if columns["frames"][-1] != frames:
+        raise ValueError(
+            f"{path} ends at {columns['frames'][-1]:.0f} frames, its row in the summary at {frames}: cut short or of "
+            "another run (run sweep.py again to export it)"
+        )
     valid = columns["episodes"] >= FULL_WINDOW
     return {key: values[valid] for key, values in columns.items()}
 
@@ -134,7 +147,7 @@ def plot_curves(rows: list[dict], curves_dir: Path, out: Path) -> None:
         for (method, group_fov), runs in groups.items():
             if group_fov != fov:
                 continue
-            curves = [read_curve(curves_dir / f"{method}_fov{fov}_seed{r['seed']}.csv") for r in runs]
+            curves = [read_curve(curves_dir / f"{method}_fov{fov}_seed{r['seed']}.csv", int(r["frames"])) for r in runs]
             curves = [c for c in curves if c["frames"].size]  # runs too short to fill the window have no curve
             if not curves:
                 continue
@@ -212,10 +225,18 @@ def main(argv: list[str] | None = None) -> int:
     """Command line; returns the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ablations", action="store_true", help="the ablations instead of Figure 1's runs")
-    parser.add_argument("--results", type=Path, default=HERE / "results", help="sweep.py's --results")
-    parser.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures", help="where the figure goes")
-    parser.add_argument("--doc", type=Path, default=DOC, help="the document whose table is updated")
+    parser.add_argument("--results", type=Path, default=RESULTS, help="sweep.py's --results (default fig1/results)")
+    parser.add_argument(
+        "--figures", type=Path, help="where the figure goes (default: docs/figures for fig1/results, else --results)"
+    )
+    parser.add_argument(
+        "--doc", type=Path, help="the document whose table is updated (default: docs/reproduction.md for "
+        "fig1/results; for another --results none, the table is only printed)"
+    )
     args = parser.parse_args(argv)
+    committed = args.results.resolve() == RESULTS.resolve()
+    figures = args.figures or (ROOT / "docs" / "figures" if committed else args.results)
+    doc = args.doc or (DOC if committed else None)
     name = "ablations" if args.ablations else "summary"
     try:
         rows = read_summary(args.results / f"{name}.csv")
@@ -226,20 +247,24 @@ def main(argv: list[str] | None = None) -> int:
         check_one_budget(rows)
         table = summary_table(rows)
         marker = "fig1-ablations" if args.ablations else "fig1-summary"
-        if not args.doc.is_file():
-            raise ValueError(f"--doc {str(args.doc)!r} does not exist")
-        try:
-            text = replace_between(args.doc.read_text(), marker, table)
-        except ValueError as error:
-            raise ValueError(f"--doc {str(args.doc)!r}: {error}") from None
-        figure = args.figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
+        if doc is not None:
+            if not doc.is_file():
+                raise ValueError(f"--doc {str(doc)!r} does not exist")
+            try:
+                text = replace_between(doc.read_text(), marker, table)
+            except ValueError as error:
+                raise ValueError(f"--doc {str(doc)!r}: {error}") from None
+        figure = figures / ("fig1_ablations.png" if args.ablations else "fig1_curves.png")
         plot_curves(rows, args.results / "runs", figure)
     except ValueError as error:
         parser.error(str(error))
     print(table, end="")
-    with atomic_path(args.doc) as temporary:
+    if doc is None:
+        print(f"wrote {figure}")
+        return 0
+    with atomic_path(doc) as temporary:
         temporary.write_text(text)
-    print(f"wrote {figure} and the table in {args.doc}")
+    print(f"wrote {figure} and the table in {doc}")
     return 0
 
 

@@ -11,13 +11,16 @@ finished so far, success_rate, mean_return; at most 200 rows) and its row is mer
 ``--eval-episodes`` held-out episodes, beside a uniformly random mover and looker on the same ones.
 
 Resumable: run the same command again and finished runs are skipped, interrupted ones continue from
-their checkpoint, and a larger ``--frames`` continues finished runs to the new budget. A run counts as
-finished when its ``eval.json`` is of its last logged frames (not of an earlier budget it was continued
-from), of ``--frames`` or more, over ``--eval-episodes`` episodes; a run already trained past ``--frames`` is
-evaluated where it stands. Ctrl-C stops every run cleanly (each saves its checkpoint first; a second Ctrl-C
-aborts them at once), and so do a SIGTERM and the SIGHUP of a closing terminal. Two sweeps cannot run on
-the same ``--runs`` folder at once (a lock file refuses the second). A different budget belongs in its own
-``--results`` folder: ``aggregate.py`` refuses a config whose runs have different frame counts.
+their checkpoint, and a larger ``--frames`` with a new ``--results`` folder continues finished runs to the new
+budget. A run counts as finished when its ``eval.json`` is of its last logged frames (not of an earlier budget
+it was continued from), of ``--frames`` or more, over ``--eval-episodes`` episodes. A results folder holds one
+budget: its ``sweep.json`` pins ``--frames``, ``--eval-episodes`` and the options after ``--``, and a sweep with
+others is refused (so the committed pilot's rows are never replaced by another budget's, nor averaged with runs
+of other options); a run directory continued to a larger budget is skipped by a sweep of a smaller one (its
+runs of that budget are gone). Ctrl-C stops every run cleanly (each saves its checkpoint first; a second Ctrl-C
+aborts them at once), and so do a SIGTERM and the SIGHUP of a closing terminal (a sweep started in the
+background by a script ignores Ctrl-C, as any Python program does there: send SIGTERM). Two sweeps cannot run
+on the same ``--runs`` folder at once (a lock file refuses the second).
 
 Cores: the machine's CPUs are split into ``--jobs`` groups of ``--cores-per-job`` (default 1 core per
 run, as many runs at once as cores) and each run is pinned to its group, so its physics threads and its
@@ -28,11 +31,13 @@ Examples (from the repository root)::
     python experiments/fig1/sweep.py --frames 300000 --seeds 0 1 2 3 4    # the committed CPU pilot's runs
     python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2 \
         --results experiments/fig1/results/frames2m
-    python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 -- --num-envs 32
+    python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 --runs /tmp/envs32 \
+        --results /tmp/envs32/results -- --num-envs 32
     python experiments/fig1/sweep.py --ablations --frames 300000 --seeds 0 1 2
 
 Arguments after ``--`` go to every ``activeperc-train`` call unchanged.
-Then ``python experiments/fig1/aggregate.py`` draws the curves and updates docs/reproduction.md.
+Then ``python experiments/fig1/aggregate.py --results RESULTS`` (the same folder) draws the curves and prints the
+table; for the committed folder it updates docs/reproduction.md and docs/figures.
 """
 
 from __future__ import annotations
@@ -53,7 +58,8 @@ import numpy as np
 
 from activeperc_env.core import MAX_SEED, usable_cpus
 from activeperc_rl.atomic import atomic_path
-from activeperc_rl.checkpoint import CHECKPOINT, EVAL, METRICS, load_checkpoint
+from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS, load_checkpoint
+from activeperc_rl.config import load_yaml
 from activeperc_rl.rundir import run_files
 from activeperc_rl.signals import stop_raises_interrupt
 
@@ -75,6 +81,8 @@ SUMMARY_COLUMNS = (
 CURVE_COLUMNS = ("frames", "episodes", "success_rate", "mean_return")
 """Columns of an exported curve; ``episodes`` counts the training episodes finished so far."""
 CURVE_ROWS = 200
+SETTINGS = "sweep.json"
+"""The file of a results folder that pins the settings its rows were made with (:func:`check_settings`)."""
 POLL_S = 1.0
 
 
@@ -144,13 +152,53 @@ def is_finished(run_dir: Path, frames: int, eval_episodes: int) -> bool:
     path = run_dir / EVAL
     if not path.is_file():
         return False
-    evaluation = json.loads(path.read_text())
-    evaluated = int(evaluation["frames"])
+    try:
+        evaluation = json.loads(path.read_text())
+        evaluated = int(evaluation["frames"])
+        episodes = evaluation["learned"]["episodes"]
+    except (ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{path} is not an evaluation activeperc-train wrote ({error!r}): delete it to evaluate the "
+                         "run again") from None
     return (
         evaluated >= frames
         and evaluated == last_logged_frames(run_dir)
-        and evaluation["learned"]["episodes"] == eval_episodes
+        and episodes == eval_episodes
     )
+
+
+def run_budget(run_dir: Path) -> int | None:
+    """The ``frames`` the run in ``run_dir`` was last asked to train to (its ``config.yaml``), or ``None`` without a
+    checkpoint (no run, or one killed before its first checkpoint, which the sweep starts afresh)."""
+    path = run_dir / CONFIG
+    if not (run_dir / CHECKPOINT).is_file() or not path.is_file():
+        return None
+    try:
+        return int(load_yaml(path)["frames"])
+    except (ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{path} is not a run's config ({error}): move the run directory away") from None
+
+
+def check_settings(results: Path, settings: dict, write: bool) -> None:
+    """``ValueError`` when ``results`` holds rows made with other settings (its :data:`SETTINGS` file): a results
+    folder holds one budget, one evaluation and one set of options, so that its rows may be averaged. A folder
+    without the file gets it (``write``)."""
+    path = results / SETTINGS
+    if path.is_file():
+        try:
+            pinned = json.loads(path.read_text())
+        except ValueError as error:
+            raise ValueError(f"{path} is damaged ({error}); it holds the settings of the folder's rows") from None
+        differ = [f"{key} {pinned.get(key)!r} there, {value!r} here" for key, value in settings.items()
+                  if pinned.get(key) != value]
+        if differ:
+            raise ValueError(
+                f"{results} holds results of other settings ({'; '.join(differ)}): give these runs a --results "
+                "folder of their own (the run directories are continued in place)"
+            )
+    elif write:
+        results.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as temporary:
+            temporary.write_text(json.dumps(settings, indent=2) + "\n")
 
 
 def last_logged_frames(run_dir: Path) -> int | None:
@@ -171,8 +219,9 @@ def method_rank(method: str) -> int:
 def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, extra: list[str]) -> list[str]:
     """The ``activeperc-train`` call of a task: a resume when the run has a checkpoint, else a fresh run.
 
-    A checkpoint already past ``frames`` (a run continued to a larger budget and stopped) is resumed to its own
-    frames, which evaluates it where it stands (the trainer refuses a total below what it has trained).
+    A checkpoint already past ``frames`` (a run that overshot its budget within its last iteration and stopped
+    before its evaluation) is resumed to its own frames, which evaluates it where it stands (the trainer refuses a
+    total below what it has trained).
     """
     checkpoint = run_dir / CHECKPOINT
     if checkpoint.is_file():
@@ -216,8 +265,15 @@ def export_run(task: Task, run_dir: Path, results: Path) -> dict:
 
 
 def read_summary(path: Path) -> list[dict]:
-    """The rows of a summary CSV (empty when the file does not exist); see :func:`read_rows`."""
-    return read_rows(path, SUMMARY_COLUMNS)
+    """The rows of a summary CSV (empty when the file does not exist); see :func:`read_rows`. A value that is not
+    a number where one belongs is a ``ValueError`` naming the file and line."""
+    rows = read_rows(path, SUMMARY_COLUMNS)
+    for line, row in enumerate(rows, start=2):
+        try:
+            [int(row[c]) for c in ("fov", "seed", "frames")] + [float(row[c]) for c in SUMMARY_COLUMNS[4:]]
+        except ValueError as error:
+            raise ValueError(f"{path}, line {line}: {error}") from None
+    return rows
 
 
 def read_rows(path: Path, required: tuple[str, ...]) -> list[dict]:
@@ -285,9 +341,14 @@ def run_sweep(
     groups = groups or [None]
     extra = extra or []
     results = summary.parent
-    pending, done_rows = [], []
+    pending, done_rows, elsewhere = [], [], []
     for task in tasks:
-        if is_finished(task.run_dir(runs), frames, eval_episodes):
+        budget = run_budget(task.run_dir(runs))
+        if budget is not None and budget > frames:
+            elsewhere.append(task)
+            print(f"sweep: skip {task.label}: its run directory was continued to {budget} frames, so it no longer "
+                  f"holds the run of {frames} (a budget's runs need their own --runs)", flush=True)
+        elif is_finished(task.run_dir(runs), frames, eval_episodes):
             done_rows.append(export_run(task, task.run_dir(runs), results))
         else:
             pending.append(task)
@@ -326,8 +387,13 @@ def run_sweep(
               flush=True)
         _stop([process for process, _, _ in running.values()])
         return 130
-    if failed:
-        print(f"sweep: {len(failed)} run(s) failed: {', '.join(t.label for t in failed)}", flush=True)
+    except Exception:  # a results file it cannot update, say: no run is left going unwatched
+        print("sweep: stopping the runs (each saves its checkpoint) after this error:", flush=True)
+        _stop([process for process, _, _ in running.values()])
+        raise
+    if failed or elsewhere:
+        left = [t.label for t in failed + elsewhere]
+        print(f"sweep: {len(left)} run(s) failed or skipped: {', '.join(left)}", flush=True)
         return 1
     print(f"sweep: all {len(tasks)} runs done; rows in {summary}", flush=True)
     return 0
@@ -379,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=300_000, help="frame budget of every run (default 300000)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="seeds of every config")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="seeds of every config (default 0 1 2)")
     parser.add_argument("--only", nargs="+", metavar="CONFIG", help="run only these configs (names without .yaml)")
     parser.add_argument("--ablations", action="store_true", help="run configs/ablations/ instead of Figure 1's")
     parser.add_argument("--jobs", type=int, help="runs at once (default: CPUs // cores-per-job)")
@@ -402,16 +468,24 @@ def main(argv: list[str] | None = None) -> int:
         if groups[0] is None and args.cores_per_job > 1:
             print(f"sweep: {len(groups)} runs of {args.cores_per_job} cores do not fit this machine's CPUs: "
                   "the runs are not pinned", flush=True)
+        tasks = [Task(config, seed) for seed in args.seeds for config in configs]
+        summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
+        settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "options": extra}
+        read_summary(summary)  # a damaged file is named now, not when the first run has finished
+        check_settings(args.results, settings, write=not args.dry_run)
+        if args.dry_run:
+            for task in tasks:
+                run_dir = task.run_dir(args.runs)
+                budget = run_budget(run_dir)
+                if budget is not None and budget > args.frames:
+                    print(f"{task.label}: skipped: its run directory was continued to {budget} frames")
+                    continue
+                state = "done" if is_finished(run_dir, args.frames, args.eval_episodes) else "to run"
+                command = train_command(task, run_dir, args.frames, args.eval_episodes, extra)
+                print(f"{task.label}: {state}: {' '.join(command)}")
+            return 0
     except ValueError as error:
         parser.error(str(error))
-    tasks = [Task(config, seed) for seed in args.seeds for config in configs]
-    summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
-    if args.dry_run:
-        for task in tasks:
-            state = "done" if is_finished(task.run_dir(args.runs), args.frames, args.eval_episodes) else "to run"
-            command = train_command(task, task.run_dir(args.runs), args.frames, args.eval_episodes, extra)
-            print(f"{task.label}: {state}: {' '.join(command)}")
-        return 0
     args.runs.mkdir(parents=True, exist_ok=True)
     with open(args.runs / ".sweep.lock", "w") as lock:
         try:
