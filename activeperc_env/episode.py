@@ -8,13 +8,13 @@ first-person views at the start and after each of the first 7 cycles, side by si
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
 
+from activeperc_env.arguments import ArgumentParser
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import MAX_SEED
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, parallel_env
@@ -25,7 +25,7 @@ STRIP_CYCLES = 8
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="activeperc-episode",
         description="Play one episode with random agents and write OUT/map.png, OUT/views.png (the first views) "
         "and OUT/episode.mp4 (map beside view, one frame per cycle).",

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from activeperc_env import EnvConfig
+from activeperc_env.arguments import ArgumentParser
 from activeperc_env.config import LOOKER_REWARDS, field_docs
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import (
@@ -63,15 +64,6 @@ def _add_fields(group, cls, skip=()) -> None:
 def _parser_type(default):
     """How a flag's text becomes the field's type: ints also from whole numbers in exponent notation (2e6)."""
     return whole_number if isinstance(default, int) else type(default)
-
-
-class ArgumentParser(argparse.ArgumentParser):
-    """argparse's parser whose errors are one line, as every other error of the console scripts (argparse prints the
-    usage of every flag first; that is what ``--help`` is for)."""
-
-    def error(self, message: str):
-        """Print ``PROG: error: MESSAGE`` and a pointer to ``--help``, and exit with status 2."""
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -18,12 +18,12 @@ import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 from tqdm import tqdm
 
+from activeperc_env.arguments import ArgumentParser
 from activeperc_env.config import is_int
 from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
-from activeperc_rl.cli import ArgumentParser
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy

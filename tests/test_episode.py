@@ -34,7 +34,8 @@ def test_episode_names_a_bad_option(tmp_path, capsys, flags, named):
     with pytest.raises(SystemExit) as exit:
         main(["--out", str(tmp_path / "episode"), *flags])
     assert exit.value.code == 2
-    assert named in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert named in err and err.count("\n") == 1, err  # one line, no usage block
     assert not (tmp_path / "episode").exists()
 
 
