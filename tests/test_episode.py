@@ -45,3 +45,11 @@ def test_episode_names_an_out_that_is_a_file(tmp_path, capsys):
         with pytest.raises(SystemExit) as exit:
             main(["--out", str(out)])
         assert exit.value.code == 2 and named in capsys.readouterr().err
+
+
+def test_the_seed_picks_the_layout(tmp_path, capsys):
+    maps = {}
+    for name, seed in (("a", "3"), ("b", "3"), ("c", "4")):
+        assert main(["--out", str(tmp_path / name), "--seed", seed, "--no-video"]) == 0
+        maps[name] = iio.imread(tmp_path / name / "map.png")
+    assert np.array_equal(maps["a"], maps["b"]) and not np.array_equal(maps["a"], maps["c"])

@@ -384,6 +384,14 @@ def test_damaged_results_are_named_before_any_run_starts(sweep, aggregate, tmp_p
     assert "joint_fov60_seed0.csv ends at" in capsys.readouterr().err
 
 
+def test_a_run_exported_again_replaces_its_row(sweep, tmp_path):
+    path = tmp_path / "summary.csv"
+    row = dict.fromkeys(sweep.SUMMARY_COLUMNS, "0") | {"method": "joint", "fov": "60"}
+    sweep.merge_summary(path, [row | {"seed": "1", "frames": "64"}, row | {"seed": "0", "frames": "64"}])
+    sweep.merge_summary(path, [row | {"seed": "1", "frames": "128"}])
+    assert [(r["seed"], r["frames"]) for r in read_csv(path)] == [("0", "64"), ("1", "128")]
+
+
 def test_aggregate_refuses_to_average_budgets(aggregate, tmp_path, capsys):
     rows = read_csv(FIG1 / "results" / "summary.csv")
     rows[0]["frames"] = "638208"

@@ -45,6 +45,9 @@ def test_env_is_order_enforced_and_agents_alternate():
     env = activeperc_env.env(max_cycles=3)
     assert isinstance(env, wrappers.OrderEnforcingWrapper)
     env.reset(seed=0)
+    parallel = activeperc_env.parallel_env()
+    parallel.reset(seed=0)
+    assert env.possible_agents == env.agents == parallel.possible_agents == parallel.agents == [MOVER, LOOKER]
     order = []
     for agent in env.agent_iter():
         order.append(agent)

@@ -74,8 +74,16 @@ def test_layouts_follow_the_documented_placement(goal_distance):
             if num_obstacles:
                 assert offsets[0] <= LINE_OFFSET + 1e-9, "the first occluder stands on the start-goal line"
                 assert np.all((offsets[1:] >= SIDE_OFFSET[0] - 1e-9) & (offsets[1:] <= SIDE_OFFSET[1] + 1e-9))
-            inside = np.abs(layout.occluders_xy) < [names.ROOM_HALF_X, names.ROOM_HALF_Y]
+            # every occluder's box stands inside the walls and clear of the goal's box, of the robot at its start
+            # and of the other boxes (as circles around each box: a sufficient test)
+            box = names.OCCLUDER_HALF[0] * np.sqrt(2)
+            inside = np.abs(layout.occluders_xy) + names.OCCLUDER_HALF[0] < [names.ROOM_HALF_X, names.ROOM_HALF_Y]
             assert inside.all()
+            to_goal = np.linalg.norm(layout.occluders_xy - layout.goal_xy, axis=1)
+            assert np.all(to_goal > box + names.GOAL_HALF * np.sqrt(2))
+            assert np.all(np.linalg.norm(layout.occluders_xy - layout.start_xy, axis=1) > box + names.ROBOT_RADIUS)
+            apart = np.linalg.norm(layout.occluders_xy[:, None] - layout.occluders_xy[None], axis=-1)
+            assert np.all(apart[~np.eye(num_obstacles, dtype=bool)] > 2 * box)
 
 
 def test_the_hardest_config_never_runs_out_of_draws():

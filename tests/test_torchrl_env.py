@@ -171,6 +171,14 @@ def test_partial_steps_leave_finished_rooms_alone():
     env.close()
 
 
+def test_a_partial_step_in_looker_mode_turns_only_the_stepped_rooms_cameras():
+    env = make_env(num_envs=2, seed=0, looker=constant_looker(0), **FAST)  # the looker always pans left
+    td = env.reset().set(("mover", "action"), torch.tensor([0, 0])).set("_step", torch.tensor([True, False]))
+    env.step(td)
+    assert env.sim.pan()[:, 0].tolist() == [pytest.approx(math.radians(30.0)), 0.0]
+    env.close()
+
+
 def test_same_seed_same_observations():
     steps, n = 12, 3
     actions = torch.randint(0, 3, (steps, n, 2), generator=torch.Generator().manual_seed(0))

@@ -266,6 +266,12 @@ def test_resume_with_other_options_names_them(tmp_path, capsys):
     assert cli.main(["--out", str(out), "--resume", "--fov", "100", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "fov" in err and "60" in err and "100" in err
+    saved = (out / "config.yaml").read_text()
+    assert cli.main(["--out", str(out), "--resume", "--lr", "1e-3", "--num-envs", "2", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "lr: 0.0007 -> 0.001" in err and "num_envs: 4 -> 2" in err
+    assert (out / "config.yaml").read_text() == saved
+    assert cli.main(["--out", str(out), "--resume", "--frames", "160", "--checkpoint-every", "5", "--no-progress"]) == 0
 
 
 def test_resume_below_the_trained_frames_is_refused(tmp_path, capsys):
@@ -320,6 +326,7 @@ def test_bad_flags_are_named(tmp_path, capsys):
         ("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0), ("lr", "7e-4"),
         ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
         ("lr", float("inf")), ("max_grad_norm", float("nan")), ("entropy_coeff", float("inf")), ("seed", 2**63),
+        ("rollout_length", 1), ("collect_workers", 17),
     ],
 )  # fmt: skip
 def test_invalid_training_value_names_the_field(field, value):

@@ -81,6 +81,20 @@ def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_we
     assert len(set(ids.tolist())) == 5
 
 
+def test_each_worker_samples_from_a_stream_of_its_own():
+    """Workers with as many rooms each would draw the same actions from one seed: less exploration than k = 0."""
+    from activeperc_rl.models import RandomPolicy
+
+    config = dataclasses.asdict(SMALL)
+    collector = ProcessCollector(RandomPolicy(("mover", "looker")), None, config, 4, 8, workers=2, env_seed=7,
+                                 torch_seed=0)  # fmt: skip
+    try:
+        actions = next(collector)["mover", "action"]
+    finally:
+        collector.shutdown()
+    assert not torch.equal(actions[:2], actions[2:])  # worker 0's two rooms against worker 1's
+
+
 def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
     # 3 rooms over 2 workers: worker 0 holds 2 rooms and fails, worker 1 holds 1 and starts fine
     with pytest.raises(RuntimeError, match="collector worker 0 failed(.|\n)*this looker fails with two rooms"):
