@@ -369,6 +369,10 @@ def test_damaged_results_are_named_before_any_run_starts(sweep, aggregate, tmp_p
     with pytest.raises(SystemExit):
         sweep.main([*argv, "--frames", "300000", "--dry-run"])
     assert "eval.json is not an evaluation activeperc-train wrote" in capsys.readouterr().err
+    assert sweep.main([*argv, "--frames", "64", *TINY]) == 2  # one line, no traceback, no run started
+    err = capsys.readouterr().err
+    assert err.startswith("sweep: error: ") and "eval.json is not an evaluation" in err and err.count("\n") == 1
+    assert not (run / "train.log").exists()
     # a curve cut short is refused by aggregate, which writes nothing into docs/ for a folder of its own
     (results / "summary.csv").write_text((FIG1 / "results" / "summary.csv").read_text())
     (results / "runs").mkdir()

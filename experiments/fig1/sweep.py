@@ -270,7 +270,8 @@ def read_summary(path: Path) -> list[dict]:
     rows = read_rows(path, SUMMARY_COLUMNS)
     for line, row in enumerate(rows, start=2):
         try:
-            [int(row[c]) for c in ("fov", "seed", "frames")] + [float(row[c]) for c in SUMMARY_COLUMNS[4:]]
+            for column in SUMMARY_COLUMNS[1:]:
+                (int if column in ("fov", "seed", "frames") else float)(row[column])
         except ValueError as error:
             raise ValueError(f"{path}, line {line}: {error}") from None
     return rows
@@ -493,7 +494,11 @@ def main(argv: list[str] | None = None) -> int:
         except BlockingIOError:
             parser.error(f"another sweep.py is running on {str(args.runs)!r}; wait for it or stop it first")
         with stop_raises_interrupt():  # a kill or a closing terminal stops the runs as Ctrl-C does
-            return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+            try:
+                return run_sweep(tasks, args.frames, args.runs, summary, args.eval_episodes, groups, extra)
+            except ValueError as error:  # a damaged run or results file (any runs going were stopped first)
+                print(f"sweep: error: {error}", file=sys.stderr, flush=True)
+                return 2
 
 
 if __name__ == "__main__":
