@@ -179,6 +179,17 @@ def test_a_partial_step_in_looker_mode_turns_only_the_stepped_rooms_cameras():
     env.close()
 
 
+def test_a_room_reset_and_left_out_of_the_next_step_is_not_done():
+    """The done flags a partial step reports for a room it leaves out are those of the room's current episode."""
+    env = make_env(num_envs=2, seed=0, max_cycles=1, **FAST)
+    actions = {"mover": {"action": torch.tensor([0, 0])}, "looker": {"action": torch.tensor([1, 1])}}
+    td = env.reset().update(actions)
+    assert env.step(td)["next", "done"].all()  # both rooms truncated after one cycle
+    td = env.reset().update(actions).set("_step", torch.tensor([False, True]))
+    assert env.step(td)["next", "done"].squeeze(-1).tolist() == [False, True]
+    env.close()
+
+
 def test_same_seed_same_observations():
     steps, n = 12, 3
     actions = torch.randint(0, 3, (steps, n, 2), generator=torch.Generator().manual_seed(0))
