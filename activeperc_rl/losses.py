@@ -62,7 +62,9 @@ def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tupl
     ``done`` set; masked-out steps belong to no trajectory (see the module docstring).
 
     Args:
-        done: bool tensor of shape ``[B, T]`` or ``[B, T, 1]``: the episode ended at this step.
+        done: bool tensor of shape ``[B, T]`` or ``[B, T, 1]``: the episode ended at this step. A one-room rollout
+            of batch shape ``[T]`` has a ``done`` of shape ``[T, 1]``, which reads as ``T`` rows of one step: pass
+            ``done.reshape(1, -1)`` (:class:`MetaEvaluationLoss` does so for its tensordicts).
         mask: optional bool tensor of shape ``[B, T]`` or ``[B, T, 1]``; ``False`` marks a
             padded step, which is ignored.
 
@@ -220,7 +222,8 @@ class MetaEvaluationLoss(LossModule):
 
     @property
     def in_keys(self) -> list[NestedKey]:
-        """Keys read from ``D2`` (``D1`` is read at the same done, mask and critic keys)."""
+        """Keys read from ``D2`` (``D1`` is read at the same done, mask and critic keys). The mask is optional, as
+        rollouts without padding lack it: select with ``td.select(*loss.in_keys, strict=False)``."""
         keys = self.tensor_keys
         record = keys.looker_record
         in_keys = [keys.done, keys.mask, _join(record, keys.looker_action)]
@@ -240,6 +243,13 @@ class MetaEvaluationLoss(LossModule):
         # No value estimator: the keys are read directly from tensor_keys.
         pass
 
+    def make_value_estimator(self, value_type=None, **hyperparams):
+        """Not available: the meta-evaluator reads the critics' values of the states themselves (eq. 2), no return
+        or advantage is estimated."""
+        raise NotImplementedError(
+            "MetaEvaluationLoss has no value estimator: it averages the critics' values over each trajectory (eq. 2)"
+        )
+
     def _steps(self, tensordict: TensorDictBase, name: str) -> tuple[TensorDictBase, torch.Tensor, torch.Tensor, int]:
         """Flatten ``tensordict`` to ``[B, T]`` and number its trajectories.
 
@@ -248,6 +258,8 @@ class MetaEvaluationLoss(LossModule):
         """
         if tensordict.batch_dims < 1:
             raise ValueError(f"{name} must have a time dimension (batch shape [B, T]), got {tensordict.batch_size}.")
+        if tensordict.batch_size.numel() == 0:  # (TensorDict.numel() is 1 for an empty batch)
+            raise ValueError(f"{name} has no steps (batch shape {tuple(tensordict.batch_size)}).")
         if tensordict.batch_dims == 1:
             tensordict = tensordict.unsqueeze(0)
         elif tensordict.batch_dims > 2:

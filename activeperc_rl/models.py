@@ -103,6 +103,8 @@ def start_holding(actor, hold_prob: float) -> None:
     (action 1 of a looker; actions 1, 4, 7 of the joint agent, ``a = 3 u_m + u_c``), 0 elsewhere: every
     view gets the same start, the moves stay uniform, and ``argmax`` holds. ``hold_prob = 1/3`` is uniform.
     """
+    if not (isinstance(hold_prob, (int, float)) and 0 < hold_prob < 1):
+        raise ValueError(f"hold_prob={hold_prob!r} is invalid: expected a probability in (0, 1)")
     out = actor[0].module.out
     holds = torch.arange(out.out_features) % NUM_ACTIONS == HOLD
     with torch.no_grad():

@@ -376,6 +376,10 @@ def test_errors():
         loss(td, reference_td())
     with pytest.raises(TypeError, match="get_dist"):
         MetaEvaluationLoss(critic, critic, critic)
+    with pytest.raises(ValueError, match=r"reference \(D1\) has no steps \(batch shape \(2, 0\)\)"):
+        loss(rollout_td(), reference_td()[:, :0])  # not 'masked out': there is no mask
+    with pytest.raises(NotImplementedError, match="no value estimator"):
+        loss.make_value_estimator()
 
 
 def test_nan_at_padded_steps_does_not_reach_the_gradients():

@@ -89,6 +89,13 @@ def test_epsilon_greedy_looker():
     assert 0.7 < agree < 0.9, agree
 
 
+@pytest.mark.parametrize("hold_prob", [0, 1.0, 1.5, "0.9"])
+def test_start_holding_names_a_bad_probability(hold_prob):
+    actor = make_actor(make_encoder(EnvConfig(), (4,), 8), 8, "looker")
+    with pytest.raises(ValueError, match=f"hold_prob={hold_prob!r} is invalid"):
+        start_holding(actor, hold_prob)
+
+
 @pytest.mark.parametrize(("num_actions", "hold_prob"), [(3, 0.95), (9, 0.9), (3, 1 / 3)])
 def test_start_holding_sets_the_untrained_look(num_actions, hold_prob):
     torch.manual_seed(0)
