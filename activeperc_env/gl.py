@@ -28,7 +28,7 @@ MESA_DRIVER_HELP = (
     "'apt-get install libgl1-mesa-dri' on Debian/Ubuntu."
 )
 
-# MUJOCO_GL's values on Linux, as MuJoCo reads them (lower-cased, stripped); any other fails at ``import mujoco``
+# MUJOCO_GL's values on Linux, as MuJoCo reads them (_backend); any other fails at ``import mujoco``
 RENDERING_OFF = ("disable", "disabled", "off", "false", "0")
 LINUX_BACKENDS = ("", "egl", "osmesa", "glfw", "glx", "enable", "enabled", "on", "true", "1", *RENDERING_OFF)
 
@@ -39,7 +39,7 @@ def choose_backend() -> None:
     missing (``import mujoco`` would fail with an ``AttributeError`` of PyOpenGL's)."""
     if sys.platform in ("darwin", "win32"):
         return
-    backend = os.environ.get("MUJOCO_GL", "").lower().strip()
+    backend = _backend()
     if backend not in LINUX_BACKENDS:  # MuJoCo's own error names the value, not what to use instead
         raise RuntimeError(
             f"MUJOCO_GL={os.environ['MUJOCO_GL']!r} is not one of MuJoCo's OpenGL backends: use egl (headless; "
@@ -55,6 +55,11 @@ def choose_backend() -> None:
         raise ImportError(EGL_HELP)
     if backend == "osmesa" and ctypes.util.find_library("OSMesa") is None:
         raise ImportError(OSMESA_HELP)
+
+
+def _backend() -> str:
+    """``MUJOCO_GL`` as MuJoCo reads it: lower-cased and stripped, ``""`` when unset."""
+    return os.environ.get("MUJOCO_GL", "").lower().strip()
 
 
 def missing_display() -> str | None:
@@ -181,7 +186,7 @@ def gl_context(width: int, height: int) -> Context:
     global _made_contexts
     if forked_after_gl():
         raise RuntimeError(FORK_HELP)
-    backend = os.environ.get("MUJOCO_GL", "").lower().strip()
+    backend = _backend()
     if backend in RENDERING_OFF:
         raise RuntimeError(
             f"MUJOCO_GL={os.environ['MUJOCO_GL']!r} turns MuJoCo's rendering off, and every observation here is an "

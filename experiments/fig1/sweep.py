@@ -166,16 +166,18 @@ def is_finished(run_dir: Path, frames: int, eval_episodes: int) -> bool:
     )
 
 
-def run_budget(run_dir: Path) -> int | None:
-    """The ``frames`` the run in ``run_dir`` was last asked to train to (its ``config.yaml``), or ``None`` without a
-    checkpoint (no run, or one killed before its first checkpoint, which the sweep starts afresh)."""
+def continued_past(run_dir: Path, frames: int) -> int | None:
+    """The ``frames`` the run in ``run_dir`` was last asked to train to (its ``config.yaml``) when that is more than
+    ``frames``: the directory no longer holds the run of ``frames``, which a sweep of ``frames`` must skip. ``None``
+    otherwise, and without a checkpoint (no run, or one killed before its first checkpoint, started afresh)."""
     path = run_dir / CONFIG
     if not (run_dir / CHECKPOINT).is_file() or not path.is_file():
         return None
     try:
-        return int(load_yaml(path)["frames"])
+        budget = int(load_yaml(path)["frames"])
     except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path} is not a run's config ({error}): move the run directory away") from None
+    return budget if budget > frames else None
 
 
 def check_settings(results: Path, settings: dict, write: bool) -> None:
@@ -344,8 +346,8 @@ def run_sweep(
     results = summary.parent
     pending, done_rows, elsewhere = [], [], []
     for task in tasks:
-        budget = run_budget(task.run_dir(runs))
-        if budget is not None and budget > frames:
+        budget = continued_past(task.run_dir(runs), frames)
+        if budget is not None:
             elsewhere.append(task)
             print(f"sweep: skip {task.label}: its run directory was continued to {budget} frames, so it no longer "
                   f"holds the run of {frames} (a budget's runs need their own --runs)", flush=True)
@@ -477,8 +479,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.dry_run:
             for task in tasks:
                 run_dir = task.run_dir(args.runs)
-                budget = run_budget(run_dir)
-                if budget is not None and budget > args.frames:
+                budget = continued_past(run_dir, args.frames)
+                if budget is not None:
                     print(f"{task.label}: skipped: its run directory was continued to {budget} frames")
                     continue
                 state = "done" if is_finished(run_dir, args.frames, args.eval_episodes) else "to run"
