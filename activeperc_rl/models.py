@@ -26,6 +26,10 @@ NUM_ACTIONS = len(MOVER_ACTIONS)  # the looker has as many (LOOKER_ACTIONS)
 class Encoder(nn.Module):
     """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan, then a linear layer.
 
+    It reads the images as the env gives them, of shape ``(*batch, height, width, 3)`` with values 0 to 255
+    (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the ``(3, H, W)`` images
+    of TorchRL's ``ToTensorImage``, which are scaled to [0, 1] too) raises ``ValueError``.
+
     Args:
         height, width: the image size.
         channels: output channels of the conv layers (kernel 8 stride 4, then 4/2, then 3/1).
@@ -36,6 +40,7 @@ class Encoder(nn.Module):
 
     def __init__(self, height: int, width: int, channels: tuple[int, ...], hidden_size: int):
         super().__init__()
+        self.image_shape = (height, width, 3)
         layers, in_ch, h, w = [], 3, height, width
         for i, out_ch in enumerate(channels):
             kernel, stride = self.KERNELS[min(i, len(self.KERNELS) - 1)]
@@ -48,6 +53,12 @@ class Encoder(nn.Module):
 
     def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
         """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)`` and ``pan (*batch, 1)``."""
+        if tuple(image.shape[-3:]) != self.image_shape:
+            raise ValueError(
+                f"the encoder reads images of shape (*batch, {', '.join(map(str, self.image_shape))}) with values "
+                f"0 to 255, as the env gives them; got shape {tuple(image.shape)} (leave out transforms that "
+                "permute or scale the image, such as ToTensorImage)"
+            )
         batch = image.shape[:-3]
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)

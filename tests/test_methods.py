@@ -132,6 +132,13 @@ def test_encoder_scales_images_without_touching_its_input():
     assert torch.equal(as_float, kept)
 
 
+def test_encoder_names_an_image_of_another_layout():
+    encoder = make_encoder(EnvConfig(), (4,), 8)
+    chw = torch.rand(2, 3, 60, 80)  # what TorchRL's ToTensorImage makes of the env's images
+    with pytest.raises(ValueError, match=r"shape \(2, 3, 60, 80\).*ToTensorImage"):
+        encoder(chw, torch.zeros(2, 1))
+
+
 def test_curriculum_keeps_its_switch_point_on_resume():
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method
