@@ -5,6 +5,7 @@ The method is built as ``activeperc-train`` builds it (``TrainConfig`` defaults 
 then ``--iterations`` are timed. Inside the collectors (``Method._next``) the script adds up the time spent in
 
 - ``Simulator.move`` (the physics of one control period, reward and episode logic),
+- ``Simulator.look`` (the pan joint set for the looker's actions),
 - ``Simulator.reset`` and ``Simulator.render`` (the first-person views, ``s_bar`` and ``s'``),
 - ``Head.forward`` (every network's forward pass: the mover's policy and the looker in the loop),
 
@@ -25,6 +26,7 @@ from collections import defaultdict
 
 PARTS = (
     ("physics (Simulator.move)", "activeperc_env.core", "Simulator", "move"),
+    ("look (Simulator.look)", "activeperc_env.core", "Simulator", "look"),
     ("resets (Simulator.reset)", "activeperc_env.core", "Simulator", "reset"),
     ("renders (Simulator.render)", "activeperc_env.core", "Simulator", "render"),
     ("network forward passes (Head.forward)", "activeperc_rl.models", "Head", "forward"),
@@ -105,7 +107,10 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=10, help="timed iterations (10)")
     parser.add_argument("--warmup-iters", type=int, default=2, help="untimed iterations first (2)")
     parser.add_argument(
-        "--threads", type=int, default=TrainConfig().torch_threads, help="torch.set_num_threads (default: as training)"
+        "--threads",
+        type=int,
+        default=TrainConfig().torch_threads,
+        help="torch threads while collecting (default: as training); learning runs on TrainConfig.learner_threads",
     )
     args = parser.parse_args()
     for flag in ("num_envs", "iterations", "threads"):

@@ -58,7 +58,7 @@ import env_speed  # noqa: E402 (needs the path above)
 import peer  # noqa: E402
 from env_speed import at_least  # noqa: E402
 
-from activeperc_rl.atomic import atomic_path  # noqa: E402
+from activeperc_rl.atomic import atomic_path, check_writable  # noqa: E402
 
 DEFAULT_NUM_ENVS = (1, 4, 16, 64, 256, 1024)
 GOAL_NUM_ENVS = 64  # the goal is judged at this number of rooms
@@ -259,7 +259,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--plot", type=Path, help="write the plot to this image (default: none)")
     parser.add_argument("--memory-csv", type=Path, help="write the RSS samples to this CSV (default: none)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    for flag, path in (("--csv", args.csv), ("--plot", args.plot), ("--memory-csv", args.memory_csv)):
+        if path is not None:
+            try:
+                check_writable(path)  # before minutes of timing, not after them
+            except ValueError as error:
+                parser.error(f"{flag}: {error}")
+    return args
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -349,7 +356,7 @@ def main(argv: list[str] | None = None) -> dict:
         parts = [part for part in splits[0] if part != "cycles_per_s"]
         split = {part: statistics.median(s[part] for s in splits) for part in (*parts, "cycles_per_s")}
         extra = [  # seconds more per cycle for the TorchRL env than for the bare simulator, round by round
-            GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - sum(s[part] for part in parts)
+            GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - GOAL_NUM_ENVS / s["cycles_per_s"]
             for r, s in zip(rounds, splits, strict=True)
         ]
         split["torchrl_overhead"] = statistics.median(extra)

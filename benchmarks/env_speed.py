@@ -2,27 +2,29 @@
 
 What it measures (random actions throughout, each figure timed for ``--seconds`` after a warm-up):
 
-1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's step and
-   the looker's step (each gives one 80x60 observation; the mover's is drawn only when the random look
-   turned the camera, otherwise it is the looker's view again); the env is reset when an episode ends.
-   Then the same cycles again with timers on the env's simulator: where a cycle's time goes (physics,
-   renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts, random actions).
+1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's ``last()`` and step and
+   the looker's ``last()`` and step, as in PettingZoo's loop (each step gives one 80x60 observation; the mover's is
+   drawn only when the random look turned the camera, otherwise it is the looker's view again); the env is reset
+   when an episode ends. Then the same cycles again with timers on the env's simulator: where a cycle's time goes
+   (physics, renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts, random
+   actions).
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
    over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
    only the rooms whose camera turned), then resetting and rendering the rooms that are done.
 3. Gymnasium's vector API on ``activeperc/Joint-v0`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
    one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
-   16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render.
+   16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render (a
+   room's step that only resets it, the step after its episode ended, is not counted).
 4. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
    (one render each), reset when an episode ends, in a child process (``peer.py``) so that a GL failure
    there cannot stop our measurements; if it cannot run, the reason is printed instead.
 5. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
    MiniWorld, the core at N=64 at least 3x MiniWorld.
 
-Figures 1 to 3 are timed in ``--rounds`` rounds (3), MiniWorld before the first round and after each, and each
-round's figure is divided by the mean of the two MiniWorld figures around it: the machine's speed drifts over
-minutes, and a ratio of figures taken far apart measures the drift. The report gives the median of the rounds for
-every figure and ratio, each round's ratio, and judges the goals on the median ratio.
+Figures 1 to 3, and the AEC cycle's breakdown, are timed in ``--rounds`` rounds (3), MiniWorld before the first
+round and after each, and each round's figure is divided by the mean of the two MiniWorld figures around it: the
+machine's speed drifts over minutes, and a ratio of figures taken far apart measures the drift. The report gives the
+median of the rounds for every figure and ratio, each round's ratio, and judges the goals on the median ratio.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra,
 ``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
@@ -86,12 +88,13 @@ def machine_info() -> dict:
     }
 
 
-def current_gl_renderer() -> str:
-    """The renderer string of the current GL context (e.g. llvmpipe), or '?' when it cannot be read."""
+def gl_renderer_name(sim) -> str:
+    """The renderer string of ``sim``'s GL context (e.g. llvmpipe), or '?' when it cannot be read."""
     try:
         from OpenGL import GL
 
-        return GL.glGetString(GL.GL_RENDERER).decode()
+        with sim.renderer._current():  # the context is current only while a renderer draws
+            return GL.glGetString(GL.GL_RENDERER).decode()
     except Exception:  # only informative
         return "?"
 
@@ -108,6 +111,7 @@ def random_aec(seed: int):
 
     def cycle() -> int:
         for agent in env.possible_agents:  # the mover, then the looker
+            env.last()  # what a PettingZoo loop reads before each step (the observation is copied)
             env.step(env.action_space(agent).sample())
         if any(env.terminations.values()) or any(env.truncations.values()):
             env.reset()  # unseeded: continues the seeded stream
@@ -119,7 +123,7 @@ def random_aec(seed: int):
 def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
     """Cycles/s of the PettingZoo AEC env with random actions; also returns the GL renderer's name."""
     env, cycle = random_aec(seed)
-    gl_renderer = current_gl_renderer()
+    gl_renderer = gl_renderer_name(env.unwrapped.sim)
     try:
         return timed_rate(cycle, seconds, warmup), gl_renderer
     finally:
@@ -229,10 +233,13 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> flo
     env = gymnasium.make_vec("activeperc/Joint-v0", num_envs=GYM_VEC_SIZE, vectorization_mode=mode)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
+    ended = np.zeros(GYM_VEC_SIZE, dtype=bool)
 
     def step() -> int:
-        env.step(rng.integers(9, size=GYM_VEC_SIZE))  # both modes reset finished rooms at the next step
-        return GYM_VEC_SIZE
+        _, _, terminated, truncated, _ = env.step(rng.integers(9, size=GYM_VEC_SIZE))
+        stepped = GYM_VEC_SIZE - int(ended.sum())  # both modes only reset the rooms that ended at the last step
+        ended[:] = terminated | truncated
+        return stepped
 
     try:
         return timed_rate(step, seconds, warmup)
@@ -248,15 +255,17 @@ FIGURES = {  # key of each figure of ours: its label and unit
 }
 
 
-def measure_round(seconds: float, warmup: float, seed: int) -> tuple[dict[str, float], str]:
-    """One round of every figure of ours (:data:`FIGURES`); also returns the GL renderer's name."""
+def measure_round(seconds: float, warmup: float, seed: int) -> tuple[dict[str, float], dict[str, float], str]:
+    """One round of every figure of ours (:data:`FIGURES`) and of the AEC cycle's breakdown (:func:`aec_breakdown`);
+    also returns the GL renderer's name."""
     ours = {}
     ours["aec"], gl_renderer = bench_aec(seconds, warmup, seed)
+    aec_parts = aec_breakdown(seconds, warmup, seed)
     for n in CORE_SIZES:
         ours[f"core_n{n}"] = bench_core(n, seconds, warmup, seed)
     for mode, key in (("vector_entry_point", "gym_vector"), ("sync", "gym_sync")):
         ours[f"{key}_n{GYM_VEC_SIZE}"] = bench_gym_vector(mode, seconds, warmup, seed)
-    return ours, gl_renderer
+    return ours, aec_parts, gl_renderer
 
 
 def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None):
@@ -317,10 +326,11 @@ def main() -> None:
     )
     print()
 
-    aec_parts = aec_breakdown(args.seconds, args.warmup, args.seed)
+    breakdowns = []
 
     def measure(i: int) -> dict[str, float]:
-        ours, machine["gl_renderer"] = measure_round(args.seconds, args.warmup, args.seed)
+        ours, aec_parts, machine["gl_renderer"] = measure_round(args.seconds, args.warmup, args.seed)
+        breakdowns.append(aec_parts)
         print(f"round {i + 1}: " + ", ".join(f"{key} {rate:.1f}" for key, rate in ours.items()), flush=True)
         return ours
 
@@ -329,6 +339,7 @@ def main() -> None:
     print()
 
     medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
+    aec_parts = {part: statistics.median(b[part] for b in breakdowns) for part in breakdowns[0]}
     how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
     print(f"figures: {how}; GL: {machine['gl_renderer']}")
     for key, (label, unit) in FIGURES.items():
@@ -339,7 +350,7 @@ def main() -> None:
     parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
     rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts['rest']:.2f}"
     peer_step = f"; a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms" if peer_rates else ""
-    print(f"where an AEC cycle goes (timed apart): {aec_parts['total']:.2f} ms = {parts} + {rest}{peer_step}")
+    print(f"where an AEC cycle goes (timed apart, medians): {aec_parts['total']:.2f} ms = {parts} + {rest}{peer_step}")
     print()
 
     per_round, ratios, goals = summarise(rounds, peer_rates)
@@ -362,6 +373,7 @@ def main() -> None:
             "rounds": rounds,
             "ours_cycles_per_s": medians,
             "aec_ms_per_cycle": aec_parts,
+            "aec_ms_per_cycle_rounds": breakdowns,
             "miniworld": measured.info,
             "miniworld_steps_per_s": peer_rates,
             "miniworld_error": measured.why,

@@ -1,12 +1,17 @@
 """Where one first-person view's time goes, and what leaving the boxes out of sight out of the draw would save.
 
 The views are those of random play in the default room (one room, random moves and looks, new episodes as
-they end). Each is drawn the way ``TiledRenderer`` draws a view, in its own pass, and timed in four parts:
+they end). Each is drawn the way ``TiledRenderer.render`` draws one view, in its own pass, and timed in five parts:
 
+- ``context``: the renderer's GL context made current before the view and released after it (every
+  ``TiledRenderer.render`` call does both, so that an env may be stepped from any thread);
 - ``pose``: the room's state loaded into the renderer's ``MjData`` (``mj_kinematics``, ``mj_camlight``);
 - ``scene``: ``mjv_updateScene``, the list of geoms to draw;
 - ``draw``: ``mjr_render``, the GL draw calls (llvmpipe queues the work);
 - ``read``: ``mjr_readPixels``, the read-back, which waits for llvmpipe to finish drawing.
+
+Before the timed views, ``WARM_UP`` views are drawn each way untimed: the first draw in a new context compiles
+llvmpipe's shaders (tens of milliseconds), which would otherwise fall on whichever way drew first.
 
 Every view is also drawn with the room's boxes (walls, goal, occluders) that lie wholly outside the camera's
 view frustum moved to a geom group the view does not draw, which is what per-view culling would do, right before
@@ -31,7 +36,8 @@ import time
 
 import numpy as np
 
-PARTS = ("pose", "cull", "scene", "draw", "read")
+PARTS = ("context", "pose", "cull", "scene", "draw", "read")
+WARM_UP = 20  # untimed views drawn each way first
 MODES = ("whole", "culled")
 CULL_MARGIN = 0.01  # metres: a box counts as out of sight only this far beyond a frustum plane
 
@@ -100,8 +106,10 @@ def profile(views: int, seed: int) -> dict:
 
     def draw(index: int, cull: bool, out: np.ndarray, spent: dict, drawn: list) -> None:
         start = time.perf_counter()
+        previous = renderer._gl.make_current()
+        made_current = time.perf_counter()
         renderer._pose(*states[index])
-        marks = [start, time.perf_counter()]
+        marks = [made_current, time.perf_counter()]
         if cull:
             visible = frustum.visible(data, boxes, half_sizes)
             model.geom_group[boxes] = np.where(visible, groups[boxes], names.HIDDEN_GROUP)
@@ -114,9 +122,12 @@ def profile(views: int, seed: int) -> dict:
         mujoco.mjr_render(rect, scene, renderer._ctx)
         marks.append(time.perf_counter())
         mujoco.mjr_readPixels(out, None, rect, renderer._ctx)
-        marks.append(time.perf_counter())
+        read = time.perf_counter()
+        renderer._gl.restore(previous)
+        marks.append(read)
+        spent["context"] += made_current - start + time.perf_counter() - read
         model.geom_group[:] = groups
-        for part, (begin, end) in zip(PARTS, itertools.pairwise(marks), strict=True):
+        for part, (begin, end) in zip(PARTS[1:], itertools.pairwise(marks), strict=True):
             spent[part] += end - begin
 
     result = {"views": views, "boxes": len(boxes)}
@@ -124,12 +135,14 @@ def profile(views: int, seed: int) -> dict:
     drawn: list[int] = []
     out = {mode: np.empty((renderer.height, renderer.width, 3), dtype=np.uint8) for mode in MODES}
     try:
-        with renderer._current():  # the renderer's GL context, current for the whole profile (not a part of it)
-            for index in range(views):
-                for mode in MODES if index % 2 == 0 else MODES[::-1]:  # each mode first in half the views
-                    draw(index, mode == "culled", out[mode], spent[mode], drawn)
-                if not np.array_equal(out["whole"], out["culled"]):
-                    result.setdefault("first_differing_view", index)
+        for index in range(min(WARM_UP, views)):
+            for mode in MODES:
+                draw(index, mode == "culled", out[mode], dict.fromkeys(PARTS, 0.0), [])
+        for index in range(views):
+            for mode in MODES if index % 2 == 0 else MODES[::-1]:  # each mode first in half the views
+                draw(index, mode == "culled", out[mode], spent[mode], drawn)
+            if not np.array_equal(out["whole"], out["culled"]):
+                result.setdefault("first_differing_view", index)
     finally:
         model.geom_group[:] = groups
         sim.close()

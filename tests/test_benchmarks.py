@@ -68,9 +68,8 @@ def test_env_scaling_times_the_bare_simulator_in_each_round(env_scaling, tmp_pat
     extra = split["torchrl_overhead_rounds"]
     assert len(extra) == 2  # one difference per round, each against that round's TorchRL figure
     assert split["torchrl_overhead"] == pytest.approx(sum(extra) / 2)
-    parts = ("physics", "render", "look", "reset")
     for rates, alone, difference in zip(report["rounds"], report["core_split_rounds"], extra, strict=True):
-        assert difference == pytest.approx(2 / rates[2] - sum(alone[part] for part in parts))
+        assert difference == pytest.approx(2 / rates[2] - 2 / alone["cycles_per_s"])  # whole cycles, not parts
 
 
 def test_env_scaling_refuses_bad_values(env_scaling, capsys):
@@ -83,6 +82,13 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     with pytest.raises(SystemExit):
         env_scaling.main(["--seconds", "nan"])  # it never ended
     assert "seconds must be > 0, got nan" in capsys.readouterr().err
+
+
+def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scaling, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(env_scaling, "bench_rooms", lambda *args: pytest.fail("timed before checking --csv"))
+    with pytest.raises(SystemExit):
+        env_scaling.main(["--num-envs", "1", "--no-peer", "--csv", str(tmp_path)])
+    assert f"--csv: {str(tmp_path)!r} is a directory" in capsys.readouterr().err
 
 
 def test_performance_md_quotes_the_committed_scaling_csv():
@@ -105,12 +111,12 @@ def test_collect_breakdown_times_every_part_and_restores_the_library():
     from activeperc_rl.models import Head
 
     module = load_script("collect_breakdown")
-    originals = (Simulator.move, Simulator.render, Head.forward)
+    originals = (Simulator.move, Simulator.look, Simulator.render, Head.forward)
     result = module.breakdown("meta", num_envs=2, iterations=1, warmup_iters=0)
-    assert (Simulator.move, Simulator.render, Head.forward) == originals
+    assert (Simulator.move, Simulator.look, Simulator.render, Head.forward) == originals
     assert result["steps"] == 3 * 16  # meta: three rollouts of rollout_length 16
     parts = [result[label] for label, *_ in module.PARTS if label in result]
-    assert len(parts) >= 3 and all(seconds > 0 for seconds in parts)
+    assert len(parts) >= 4 and all(seconds > 0 for seconds in parts)  # physics, look, renders, networks
     assert sum(parts) < result["collection"] < result["total"]
 
 
@@ -123,7 +129,22 @@ def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
     assert [getattr(Simulator, part) for part in module.AEC_PARTS] == originals
     assert all(result[part] > 0 for part in ("move", "render", "look"))
     assert 0 < result["rest"] < result["total"]
-    assert sum(result[part] for part in module.AEC_PARTS) + result["rest"] == pytest.approx(result["total"])
+
+
+def test_env_speed_counts_rooms_and_cycles(monkeypatch):
+    """One call of each figure's step, as timed_rate makes them: the core counts its rooms, the AEC env one cycle of
+    both agents (each reading its observation first, as a PettingZoo loop does); its GL renderer is named."""
+    module = load_script("env_speed")
+    monkeypatch.setattr(module, "timed_rate", lambda step, seconds, warmup: step())
+    assert module.bench_core(3, seconds=1.0, warmup=0.0, seed=0) == 3
+    env, cycle = module.random_aec(seed=0)
+    try:
+        reads = []
+        monkeypatch.setattr(type(env), "last", lambda self, *args: reads.append(self.agent_selection))
+        assert cycle() == 1 and reads == ["mover_0", "looker_0"]
+        assert module.gl_renderer_name(env.unwrapped.sim) not in ("", "?")
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
@@ -254,4 +275,5 @@ def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
     result = load_script("view_profile").profile(views=30, seed=0)
     assert result["same_pixels"] and result["boxes"] == 8  # four walls, the goal, three occluders
     assert 0 < result["boxes_drawn_when_culled"] < 8
-    assert all(result[mode][part] > 0 for mode in ("whole", "culled") for part in ("pose", "scene", "draw", "read"))
+    parts = ("context", "pose", "scene", "draw", "read")
+    assert all(result[mode][part] > 0 for mode in ("whole", "culled") for part in parts)
