@@ -1,7 +1,7 @@
 """``activeperc-episode``: play one episode with random agents and save what it looked like.
 
 Writes ``OUT/map.png`` (the bird's-eye map at the start, 320x240), ``OUT/views.png`` (the mover's
-first-person views at the start and after each of the first 7 cycles, side by side) and
+first-person views at the start and after each of the first 7 cycles, side by side, 2 white pixels apart) and
 ``OUT/episode.mp4`` (map beside first-person view, one frame at the start and one per cycle, at
 ``control_hz`` frames per second: simulated time), and prints the episode's length and return.
 """
@@ -21,6 +21,14 @@ from activeperc_env.pettingzoo_env import LOOKER, MOVER, parallel_env
 from activeperc_env.render import side_by_side
 
 STRIP_CYCLES = 8
+STRIP_GAP = 2  # white pixels between two views of views.png
+OUTPUTS = ("map.png", "views.png", "episode.mp4")
+
+
+def strip(views: list[np.ndarray]) -> np.ndarray:
+    """The ``views`` side by side, :data:`STRIP_GAP` white pixels apart."""
+    gap = np.full((views[0].shape[0], STRIP_GAP, 3), 255, dtype=np.uint8)
+    return np.concatenate([part for view in views for part in (gap, view)][1:], axis=1)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seed={args.seed} is invalid: expected an int in [0, 2**63 - 1]")
     if args.out.exists() and not args.out.is_dir():
         parser.error(f"--out {str(args.out)!r} is a file, not a folder")
+    for name in OUTPUTS:
+        if (args.out / name).is_dir():
+            parser.error(f"{str(args.out / name)!r} is a folder: it cannot be written")
     try:
         env = parallel_env(render_mode="rgb_array", fov=args.fov, num_obstacles=args.num_obstacles)
     except ValueError as err:
@@ -58,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         obs, _ = env.reset(seed=args.seed)
         start_map = env.render()
         frames = [side_by_side(start_map, obs[MOVER]["image"])]
-        strip = [obs[MOVER]["image"]]
+        views = [obs[MOVER]["image"]]
         total, cycles = 0.0, 0
         while env.agents:
             actions = {MOVER: int(rng.integers(3)), LOOKER: int(rng.integers(3))}
@@ -66,12 +77,12 @@ def main(argv: list[str] | None = None) -> int:
             total += rewards[MOVER]
             cycles += 1
             if cycles < STRIP_CYCLES:
-                strip.append(obs[MOVER]["image"])
+                views.append(obs[MOVER]["image"])
             frames.append(side_by_side(env.render(), obs[MOVER]["image"]))
     finally:
         env.close()
     iio.imwrite(args.out / "map.png", start_map)
-    iio.imwrite(args.out / "views.png", np.concatenate(strip, axis=1))
+    iio.imwrite(args.out / "views.png", strip(views))
     written = ["map.png", "views.png"]
     if not args.no_video:
         fps = env.config.control_hz  # the video plays in simulated time

@@ -9,6 +9,7 @@ from pathlib import Path
 ASSETS = Path(__file__).parent / "assets"
 SCENE_XML = ASSETS / "scene.xml"
 
+BASE_BODY = "base"
 ROOT_JOINT = "root"
 LEFT_WHEEL = "left_wheel"
 RIGHT_WHEEL = "right_wheel"

@@ -22,6 +22,7 @@ from activeperc_env.gl import forked_after_gl, gl_context
 MAX_BUFFER = 4096  # largest offscreen side we ask of the GL driver
 MAP_SIZE = (320, 240)  # width, height of the bird's-eye map
 CONE_LENGTH = 1.2  # metres of view cone drawn on the map
+HEADING_LENGTH = 0.5  # metres of the line that shows the base's heading on the map
 
 
 class TiledRenderer:
@@ -138,7 +139,8 @@ class TiledRenderer:
         out[views] = grid[tiles]
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray, fov: float) -> np.ndarray:
-        """Bird's-eye map of one simulation, with the camera's view cone drawn in.
+        """Bird's-eye map of one simulation, with the camera's view cone (orange) and the base's heading (a white
+        line from its centre) drawn in.
 
         Args:
             qpos: (nq,) joint positions.
@@ -154,6 +156,7 @@ class TiledRenderer:
             mujoco.mjtCatBit.mjCAT_ALL, self._scene,
         )
         self._add_view_cone(fov)
+        self._add_heading()
         width, height = MAP_SIZE
         rect = mujoco.MjrRect(0, 0, width, height)
         pixels = np.empty((height, width, 3), dtype=np.uint8)
@@ -202,18 +205,37 @@ class TiledRenderer:
             mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, origin, tip)
             self._scene.ngeom += 1
 
+    def _add_heading(self) -> None:
+        """Append a line from the base's centre along its heading (the cone shows heading plus pan)."""
+        if self._scene.ngeom >= self._scene.maxgeom:
+            return
+        base = self._model.body(names.BASE_BODY).id
+        origin = self._data.xpos[base] + np.array([0.0, 0.0, 0.1])  # above the chassis, so that it is drawn on top
+        forward = self._data.xmat[base].reshape(3, 3)[:, 0] * np.array([1.0, 1.0, 0.0])
+        tip = origin + HEADING_LENGTH * forward / max(np.linalg.norm(forward), 1e-9)
+        geom = self._scene.geoms[self._scene.ngeom]
+        mujoco.mjv_initGeom(
+            geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.zeros(9),
+            np.array([1.0, 1.0, 1.0, 1.0], dtype=np.float32),
+        )
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, origin, tip)
+        self._scene.ngeom += 1
+
     def __del__(self):
         if not sys.is_finalizing():  # at interpreter exit the GL library may be gone; the contexts die with the process
             self.close()
 
 
 def side_by_side(map_image: np.ndarray, view: np.ndarray) -> np.ndarray:
-    """A video frame: the bird's-eye map with the first-person view on its right, scaled up to the map's height."""
+    """A video frame: the bird's-eye map with the first-person view on its right, the view scaled up by a whole
+    factor to at most the map's height (a taller view stays as it is), on black, with even sides (as H.264 needs)."""
     scale = max(1, map_image.shape[0] // view.shape[0])
     big = view.repeat(scale, axis=0).repeat(scale, axis=1)
-    canvas = np.zeros((map_image.shape[0], map_image.shape[1] + big.shape[1], 3), dtype=np.uint8)
-    canvas[:, : map_image.shape[1]] = map_image
-    canvas[: big.shape[0], map_image.shape[1] :] = big
+    height = max(map_image.shape[0], big.shape[0])
+    width = map_image.shape[1] + big.shape[1]
+    canvas = np.zeros((height + height % 2, width + width % 2, 3), dtype=np.uint8)
+    canvas[: map_image.shape[0], : map_image.shape[1]] = map_image
+    canvas[: big.shape[0], map_image.shape[1] : width] = big
     return canvas
 
 

@@ -138,11 +138,15 @@ def _video_frame(env, images: torch.Tensor) -> np.ndarray:
 
 
 def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:
-    """Write ``frames`` at ``fps`` (the env's control rate: the video plays in simulated time)."""
+    """Write ``frames`` at ``fps`` (the env's control rate: the video plays in simulated time); a GIF loops."""
     import imageio.v2 as imageio
 
+    if Path(path).suffix.lower() == ".gif":
+        options = {"duration": 1000 / fps, "loop": 0}  # milliseconds a frame; played over and over
+    else:
+        options = {"fps": fps, "macro_block_size": 1}
     with atomic_path(path) as temporary:
-        imageio.mimwrite(temporary, frames, fps=fps, macro_block_size=1)
+        imageio.mimwrite(temporary, frames, **options)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from activeperc_env import EnvConfig
-from activeperc_env.episode import STRIP_CYCLES, main
+from activeperc_env.episode import STRIP_CYCLES, STRIP_GAP, main
 
 
 def test_episode_writes_map_views_and_video(tmp_path, capsys):
@@ -15,7 +15,9 @@ def test_episode_writes_map_views_and_video(tmp_path, capsys):
     cycles = int(printed.split(" in ")[1].split(" cycles")[0])
     assert 1 <= cycles <= EnvConfig.max_cycles
     assert iio.imread(out / "map.png").shape == (240, 320, 3)
-    assert iio.imread(out / "views.png").shape == (60, 80 * STRIP_CYCLES, 3)
+    views = iio.imread(out / "views.png")
+    assert views.shape == (60, 80 * STRIP_CYCLES + STRIP_GAP * (STRIP_CYCLES - 1), 3)
+    assert (views[:, 80 : 80 + STRIP_GAP] == 255).all()  # the views stand apart
     frames = iio.imread(out / "episode.mp4")
     assert frames.shape == (cycles + 1, 240, 320 + 320, 3)  # the map, then the view scaled 4x to its height
     assert iio.immeta(out / "episode.mp4")["fps"] == EnvConfig.control_hz
@@ -45,6 +47,16 @@ def test_episode_names_an_out_that_is_a_file(tmp_path, capsys):
         with pytest.raises(SystemExit) as exit:
             main(["--out", str(out)])
         assert exit.value.code == 2 and named in capsys.readouterr().err
+
+
+def test_episode_refuses_an_output_that_is_a_folder_before_it_plays(tmp_path, capsys, monkeypatch):
+    import activeperc_env.episode as episode
+
+    monkeypatch.setattr(episode, "parallel_env", lambda **kwargs: pytest.fail("played before checking"))
+    (tmp_path / "episode" / "episode.mp4").mkdir(parents=True)
+    with pytest.raises(SystemExit) as exit:
+        main(["--out", str(tmp_path / "episode")])
+    assert exit.value.code == 2 and "episode.mp4' is a folder" in capsys.readouterr().err
 
 
 def test_the_seed_picks_the_layout(tmp_path, capsys):

@@ -59,7 +59,8 @@ def test_map_shows_goal_and_occluders():
 
 
 def test_map_is_north_up_with_the_view_cone_where_the_camera_looks():
-    """The map's camera sees 4.6 m of the room's height on 240 rows, centred on the room, +x right and +y up."""
+    """The map's camera sees 4.6 m of the room's height on 240 rows, centred on the room, +x right and +y up; the
+    cone shows where the camera looks, a white line the base's heading."""
     sim = Simulator(EnvConfig(pan_step=90.0))
     sim.reset(seeds=[3])
     sim.look([2])  # the camera turns 90 degrees to the right of the heading
@@ -77,6 +78,14 @@ def test_map_is_north_up_with_the_view_cone_where_the_camera_looks():
     along = np.argwhere(orange).mean(axis=0) - pixel(xy)  # from the robot to the middle of the cone's edges
     look = np.array([-np.sin(heading + pan), np.cos(heading + pan)])  # (rows, columns) per metre, up to the scale
     assert orange.sum() > 20 and along @ look / np.linalg.norm(along) > 0.9
+    white = (image > 230).all(axis=-1)
+
+    def white_near(point):
+        row, column = np.round(pixel(point)).astype(int)
+        return white[row - 2 : row + 3, column - 2 : column + 3].any()
+
+    forward = np.array([np.cos(heading), np.sin(heading)])
+    assert white_near(xy + 0.4 * forward) and not white_near(xy - 0.4 * forward)
 
 
 FORK_SCRIPT = """
@@ -287,3 +296,15 @@ def test_a_fork_that_inherited_a_rendering_env_neither_hangs_nor_breaks_the_pare
     else:
         assert "child exited 0" in done.stdout, done.stdout
     assert "parent renders (1, 60, 80, 3)" in done.stdout
+
+
+def test_video_frames_have_even_sides_and_fit_any_view():
+    """H.264 needs even sides; a view taller than the map is shown whole (a config may ask for up to 1024 rows)."""
+    from activeperc_env.render import side_by_side
+
+    map_image = np.full((240, 320, 3), 7, np.uint8)
+    odd = side_by_side(map_image, np.full((61, 81, 3), 9, np.uint8))  # scaled 3x: 183 rows, 243 columns
+    assert odd.shape == (240, 320 + 244, 3)
+    assert (odd[:183, 320:563] == 9).all() and (odd[183:, 320:] == 0).all() and (odd[:, 563:] == 0).all()
+    tall = side_by_side(map_image, np.full((300, 64, 3), 9, np.uint8))
+    assert tall.shape == (300, 384, 3) and (tall[:240, :320] == 7).all() and (tall[240:, :320] == 0).all()

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import imageio.v3 as iio
+import numpy as np
 import pytest
 import torch
 import yaml
@@ -646,6 +647,19 @@ def test_a_checkpoint_whose_networks_do_not_fit_its_config_is_one_line(tmp_path,
     save_checkpoint(out / "checkpoint.pt", state | {"method": {"weights": 1}})
     assert evaluate.main([str(out), "--episodes", "2"]) == 2
     assert "unusable: it holds no networks" in capsys.readouterr().err
+
+
+def test_videos_of_odd_sized_views_encode_and_gifs_loop(tmp_path):
+    from PIL import Image
+
+    from activeperc_env.render import side_by_side
+
+    frames = [side_by_side(np.zeros((240, 320, 3), np.uint8), np.full((61, 81, 3), 40 * i, np.uint8)) for i in range(3)]
+    evaluate._write_video(tmp_path / "odd.mp4", frames, fps=5.0)  # ffmpeg refused odd sides
+    assert iio.imread(tmp_path / "odd.mp4").shape == (3, *frames[0].shape)
+    evaluate._write_video(tmp_path / "loop.gif", frames, fps=5.0)
+    with Image.open(tmp_path / "loop.gif") as gif:
+        assert gif.info["loop"] == 0 and gif.info["duration"] == 200 and gif.n_frames == 3
 
 
 def test_eval_checks_the_video_path_before_it_plays(tmp_path, capsys, monkeypatch):
