@@ -25,7 +25,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    try:
+        handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    except OSError as error:
+        raise _naming(error, path) from error
     os.close(handle)
     temporary = Path(name)
     os.chmod(temporary, 0o666 & ~_umask())
@@ -34,9 +37,16 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         with open(temporary, "rb+") as f:
             os.fsync(f.fileno())
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as error:
         temporary.unlink(missing_ok=True)
+        if isinstance(error, OSError) and error.filename == str(temporary):
+            raise _naming(error, path) from error
         raise
+
+
+def _naming(error: OSError, path: Path) -> OSError:
+    """``error`` as it would read for ``path``: the user asked for that file, not for our temporary one."""
+    return type(error)(error.errno, error.strerror, str(path))
 
 
 def check_writable(path: str | Path) -> None:

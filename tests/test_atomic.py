@@ -1,5 +1,7 @@
 """atomic_path: a file is replaced whole or not at all."""
 
+import errno
+
 import pytest
 
 from activeperc_rl.atomic import atomic_path
@@ -36,3 +38,14 @@ def test_atomic_path_gives_the_umask_permissions(tmp_path):
     finally:
         os.umask(mask)
     assert stat.S_IMODE((tmp_path / "eval.json").stat().st_mode) == 0o640  # not the temporary file's 0o600
+
+
+def test_atomic_path_errors_name_the_file_asked_for(tmp_path):
+    target = tmp_path / "video.mp4"
+    with pytest.raises(OSError) as error, atomic_path(target) as temporary:
+        raise OSError(errno.ENOSPC, "No space left on device", str(temporary))  # as a writer's would read
+    assert error.value.filename == str(target) and error.value.errno == errno.ENOSPC
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(OSError) as error, atomic_path("/proc/video.mp4"):  # no file can be made there
+        pass
+    assert error.value.filename == "/proc/video.mp4"
