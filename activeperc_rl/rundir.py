@@ -35,32 +35,46 @@ def claim_run_dir(out: str | Path) -> Iterator[Path]:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {str(out)!r} is a file, not a directory")
-    try:
-        out.mkdir(parents=True)
-        created = True
-    except FileExistsError:
-        created = False
-    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-    locked = False
-    try:
+    while True:
+        try:
+            out.mkdir(parents=True)
+            created = True
+        except FileExistsError:
+            created = False
+        try:
+            fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        except FileNotFoundError:  # the directory was removed since (by a run that failed before writing): again
+            continue
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            locked = True
         except BlockingIOError:
             holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
             raise ValueError(
                 f"{str(out)!r} is in use by another training process (pid {holder}): wait for it to end, "
                 f"or choose another --out"
             ) from None
+        if _is_the_lock_file(fd, out / LOCK):
+            break
+        os.close(fd)  # we locked a lock file that its holder removed (with its unused directory) meanwhile: again
+    try:
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
         for name in RUN_FILES:
             remove_leftovers(out / name)
         yield out
     finally:
-        if created and locked:
+        if created:
             remove_if_unused(out)
         os.close(fd)
+
+
+def _is_the_lock_file(fd: int, path: Path) -> bool:
+    """Whether the open file ``fd`` is still the file at ``path`` (not one removed after we opened it)."""
+    try:
+        return os.path.samestat(os.fstat(fd), os.stat(path))
+    except FileNotFoundError:
+        return False
 
 
 def new_run_dir(stem: str | Path) -> Path:

@@ -153,9 +153,16 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         if resumed:
             torch.set_rng_state(state["torch_rng"])  # after start(), which may draw from it
         # nothing is written before the run has started; from then on the directory holds a checkpoint
-        save_yaml(config, out / CONFIG)
-        if not resumed:
-            checkpoint()
+        if resumed:
+            save_yaml(config, out / CONFIG)
+        else:
+            try:  # the first checkpoint, then config.yaml: a run directory never holds a config without one
+                checkpoint()
+                save_yaml(config, out / CONFIG)
+            except BaseException:  # stopped (or failed) before it started: leave nothing of the run behind
+                for name in (CONFIG, CHECKPOINT):
+                    (out / name).unlink(missing_ok=True)
+                raise
         metrics = stack.enter_context(closing(MetricsLog(out / METRICS, keep_until=frames if resumed else None)))
         from torch.utils.tensorboard import SummaryWriter
 
@@ -236,11 +243,14 @@ def _fresh_env_seed(config: TrainConfig, frames: int) -> int:
 
 
 def load_run_config(out: str | Path) -> TrainConfig:
-    """The config saved in a run directory (``ValueError`` naming the directory when there is none)."""
+    """The config saved in a run directory: its ``config.yaml`` or, in a run killed between its first checkpoint
+    and that file, the checkpoint's (``ValueError`` naming the directory when there is neither)."""
     path = Path(out) / CONFIG
-    if not path.is_file():
-        raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")
-    return TrainConfig.from_dict(load_yaml(path))
+    if path.is_file():
+        return TrainConfig.from_dict(load_yaml(path))
+    if (Path(out) / CHECKPOINT).is_file():
+        return TrainConfig.from_dict(load_checkpoint(Path(out) / CHECKPOINT)["config"])
+    raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")
 
 
 @contextmanager

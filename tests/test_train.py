@@ -168,6 +168,32 @@ def test_a_second_process_in_the_same_run_directory_is_refused(tmp_path, capsys)
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # free again
 
 
+def test_a_lock_file_removed_with_its_unused_directory_is_not_held(tmp_path, monkeypatch):
+    """B opens the lock file of a directory that A made, then A ends without writing anything and removes the
+    directory: B's lock on the removed file holds nothing, so B claims the directory anew and a third is refused."""
+    import fcntl
+
+    out = tmp_path / "run"
+    first = claim_run_dir(out)
+    first.__enter__()
+    flock = fcntl.flock
+
+    def after_the_first_left(fd, operation):
+        if not left:
+            first.__exit__(None, None, None)  # removes the lock file and the directory
+            left.append(True)
+        return flock(fd, operation)
+
+    left = []
+
+    monkeypatch.setattr(fcntl, "flock", after_the_first_left)
+    with claim_run_dir(out):
+        monkeypatch.undo()
+        assert (out / ".lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(ValueError, match="in use by another training process"), claim_run_dir(out):
+            pass
+
+
 def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row(tmp_path):
     out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
     (out / ".checkpoint.pt.k1ll3d.pt").write_bytes(b"half a checkpoint")
@@ -192,18 +218,28 @@ def test_a_metrics_log_with_a_bad_row_is_named(tmp_path):
         MetricsLog(path, keep_until=64)
 
 
-def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsys):
+# before anything is written; while the first checkpoint is written; after it, while config.yaml is written
+@pytest.mark.parametrize("stopped_in", ["make_method", "save_checkpoint", "save_yaml"])
+def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsys, stopped_in):
     out = tmp_path / "run"
 
     def interrupted_start(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(train_module, "make_method", interrupted_start)
+    monkeypatch.setattr(train_module, stopped_in, interrupted_start)
     assert cli.main([*TINY, "--out", str(out), "--frames", "64"]) == 130
     assert "interrupted" in capsys.readouterr().err
     assert not out.exists()  # made for the run and left unused: removed again
     monkeypatch.undo()
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # the same command again
+
+
+def test_a_run_killed_before_its_config_was_written_resumes_from_its_checkpoint(tmp_path):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    (out / "config.yaml").unlink()  # killed between the first checkpoint and config.yaml
+    assert cli.main(["--resume", "--out", str(out), "--frames", "128", "--no-progress"]) == 0
+    assert int(read_metrics(out)[-1]["frames"]) >= 128
+    assert yaml.safe_load((out / "config.yaml").read_text())["frames"] == 128
 
 
 def test_training_that_fails_midway_is_one_line_with_status_1(tmp_path, monkeypatch, capsys):
