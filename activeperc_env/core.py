@@ -155,14 +155,14 @@ class Simulator:
         """Start new episodes in the rooms ``ids`` (all when ``None``).
 
         Args:
-            ids: indices of the rooms to reset.
+            ids: the rooms to reset (all when ``None``), distinct and increasing.
             seeds: ``None``, or one seed per reset room (an int is broadcast), each an int in
                 [0, ``MAX_SEED``]: a room given a seed restarts its random stream from it. Without seeds
                 the rooms draw their layouts from their streams.
         """
-        ids = self._as_ids(ids)
+        ids = self._as_ids(ids, changed=True)
         if seeds is not None:
-            for i, seed in zip(ids, _check_seeds(seeds, ids), strict=True):
+            for i, seed in zip(ids, check_seeds(seeds, ids), strict=True):
                 self._rngs[i] = np.random.default_rng(seed)
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles
@@ -205,10 +205,10 @@ class Simulator:
 
         Args:
             actions: (n,) ints in {0: turn left, 1: turn right, 2: forward}.
-            ids: the rooms that move (all when ``None``); none of them may be done.
+            ids: the rooms that move (all when ``None``), distinct and increasing; none of them may be done.
         """
-        ids = self._as_ids(ids)
-        actions = _check_actions(actions, ids, MOVER_ACTIONS, "mover")
+        ids = self._as_ids(ids, changed=True)
+        actions = check_actions(actions, ids, MOVER_ACTIONS, "mover")
         self.require_started("move()", ids)
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
@@ -243,10 +243,10 @@ class Simulator:
 
         Args:
             actions: (n,) ints in {0: pan left, 1: hold, 2: pan right}.
-            ids: the rooms whose camera turns (all when ``None``).
+            ids: the rooms whose camera turns (all when ``None``), distinct and increasing.
         """
-        ids = self._as_ids(ids)
-        actions = _check_actions(actions, ids, LOOKER_ACTIONS, "looker")
+        ids = self._as_ids(ids, changed=True)
+        actions = check_actions(actions, ids, LOOKER_ACTIONS, "looker")
         self.require_started("look()", ids)
         before = self._qpos[ids, self._ids.pan]
         pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
@@ -322,6 +322,7 @@ class Simulator:
 
     def render_map(self, index: int = 0) -> np.ndarray:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
+        index = self._as_index(index)
         self.require_started("render_map()", index)
         return self.renderer.render_map(
             self._qpos[index], self._mocap_pos[index], self.config.fov
@@ -329,6 +330,8 @@ class Simulator:
 
     def pose(self, index: int = 0) -> tuple[np.ndarray, float, float]:
         """Robot position (x, y), heading and camera pan of room ``index``, for scripts and tests."""
+        index = self._as_index(index)
+        self.require_started("pose()", index)
         q = self._qpos[index]
         r = self._ids.root
         heading = 2 * math.atan2(q[r + 6], q[r + 3])
@@ -336,16 +339,20 @@ class Simulator:
 
     def goal_xy(self, index: int = 0) -> np.ndarray:
         """Centre (x, y) of room ``index``'s goal box."""
+        index = self._as_index(index)
+        self.require_started("goal_xy()", index)
         return self._mocap_pos[index][self._ids.goal, :2].copy()
 
     def occluders_xy(self, index: int = 0) -> np.ndarray:
         """Centres (k, 2) of room ``index``'s occluder boxes in use."""
+        index = self._as_index(index)
+        self.require_started("occluders_xy()", index)
         mocap = self._mocap_pos[index]
         return mocap[list(self._ids.occluders[: self.config.num_obstacles]), :2].copy()
 
     def physics_data(self, index: int = 0) -> mujoco.MjData:
         """An ``MjData`` holding room ``index``'s full state (for MuJoCo's viewer and tools)."""
-        data = self._batch.get_data(index)
+        data = self._batch.get_data(self._as_index(index))
         mujoco.mj_forward(self.model, data)
         return data
 
@@ -364,13 +371,29 @@ class Simulator:
             self._renderer.close()
             self._renderer = None
 
-    def _as_ids(self, ids) -> np.ndarray:
+    def _as_ids(self, ids, changed: bool = False) -> np.ndarray:
+        """``ids`` as an int64 array (all rooms when ``None``); ``ValueError`` unless they are ints of rooms (a bool
+        mask is not taken: ``np.flatnonzero(mask)`` gives its rooms), and for a call that ``changed`` the rooms,
+        distinct and increasing."""
         if ids is None:
             return np.arange(self.num_envs)
-        ids = np.atleast_1d(np.asarray(ids, dtype=np.int64))
-        if ids.size and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise ValueError(f"room ids {ids.tolist()} out of range for num_envs={self.num_envs}")
-        return ids
+        arr = np.atleast_1d(np.asarray(ids))
+        if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
+            raise ValueError(
+                f"room ids {ids!r} are invalid: expected ints in 0 .. {self.num_envs - 1} "
+                "(for a bool mask, pass np.flatnonzero(mask))"
+            )
+        if arr.size and (arr.min() < 0 or arr.max() >= self.num_envs):
+            raise ValueError(f"room ids {arr.tolist()} out of range for num_envs={self.num_envs}")
+        if changed and (np.diff(arr) <= 0).any():
+            raise ValueError(f"room ids {arr.tolist()} are invalid: expected distinct rooms in increasing order")
+        return arr.astype(np.int64)
+
+    def _as_index(self, index) -> int:
+        """``index`` as the int of one room; ``ValueError`` unless it is one (negative indices are not taken)."""
+        if not (is_int(index) and 0 <= index < self.num_envs):
+            raise ValueError(f"room index {index!r} is invalid: expected an int in 0 .. {self.num_envs - 1}")
+        return int(index)
 
 
 class _Ids:
@@ -395,8 +418,10 @@ class _Ids:
         self.occluders = tuple(int(mocap(b)) for b in names.OCCLUDER_BODIES)
 
 
-def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
+def check_seeds(seeds, ids: np.ndarray) -> list[int]:
     """One seed per room of ``ids`` (an int is broadcast), each an int in [0, MAX_SEED]; else ``ValueError``."""
+    if isinstance(seeds, np.ndarray) and seeds.ndim == 0:
+        seeds = seeds.item()
     if is_int(seeds):
         seeds = [seeds] * len(ids)
     if not isinstance(seeds, (list, tuple, np.ndarray)) or len(seeds) != len(ids):
@@ -407,8 +432,9 @@ def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
     return [int(seed) for seed in seeds]
 
 
-def _check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:
-    """Validate a batch of discrete actions, naming the agent and its action space on error."""
+def check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:
+    """``actions`` for the rooms ``ids`` as an int64 array; ``ValueError`` naming the agent and its action space
+    unless they are one int of ``Discrete(len(meanings))`` per room."""
     arr = np.asarray(actions)
     if arr.size == 0 and len(ids) == 0:
         return np.zeros(0, dtype=np.int64)

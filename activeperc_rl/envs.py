@@ -89,6 +89,7 @@ from torchrl.envs import EnvBase
 
 from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
 from activeperc_env.config import is_int
+from activeperc_env.core import check_actions
 
 MOVER, LOOKER = "mover", "looker"
 
@@ -300,10 +301,13 @@ class ActivePerceptionEnv(EnvBase):
         mask = tensordict.get("_step", None)
         ids = np.arange(n) if mask is None else mask.reshape(n).nonzero().squeeze(-1).cpu().numpy()
         moves = _to_numpy(tensordict.get((MOVER, "action")), n, MOVER)[ids]
+        if self._looker is None:  # checked before the move: a bad look leaves the rooms as they were
+            looks = _to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER)[ids]
+            looks = check_actions(looks, ids, LOOKER_ACTIONS, LOOKER)
         result = self.sim.move(moves, ids)
         out = TensorDict(batch_size=self.batch_size, device=self.device)
         if self._looker is None:
-            self.sim.look(_to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER)[ids], ids)
+            self.sim.look(looks, ids)
         else:
             record = TensorDict({LOOKER: {"observation": self._observe()}}, batch_size=self.batch_size)
             with torch.no_grad():

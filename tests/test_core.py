@@ -185,6 +185,34 @@ def test_bad_num_envs_nthread_config_and_ids_are_named():
         sim.reset(ids=[5])
 
 
+def test_room_ids_and_indices_are_ints_of_rooms_and_a_refused_call_changes_nothing():
+    sim = Simulator(num_envs=3)
+    sim.reset(seeds=[0, 1, 2])
+    before = sim.get_state()
+    for ids in (np.array([False, True, True]), [0.5], "0", [[0, 1]], slice(0, 2)):  # a mask; floats; ...
+        with pytest.raises(ValueError, match="room ids .* are invalid: expected ints in 0 .. 2"):
+            sim.look([0, 0], ids=ids)
+    for call in (lambda: sim.reset(ids=[1, 1], seeds=[7, 8]), lambda: sim.move([0, 0], ids=[2, 0])):
+        with pytest.raises(ValueError, match="expected distinct rooms in increasing order"):
+            call()
+    with pytest.raises(ValueError, match="distinct rooms"):
+        sim.look([0, 0], ids=[1, 1])
+    assert sim.render([2, 0, 2]).shape[0] == 3  # reading calls take any rooms in any order
+    after = sim.get_state()
+    assert all(np.array_equal(before[key], after[key]) for key in ("physics", "cycle", "done"))
+    assert after["rngs"] == before["rngs"]  # the refused reset did not reseed room 1
+    for index in (-1, 3, True, 1.0, None):
+        for call in (sim.render_map, sim.pose, sim.goal_xy, sim.occluders_xy, sim.physics_data):
+            with pytest.raises(ValueError, match=f"room index {index!r} is invalid"):
+                call(index)
+    with pytest.raises(RuntimeError, match=r"pose\(\) before reset"):
+        Simulator().pose()
+    sim.reset(ids=[1], seeds=np.array(7))  # a 0-d array is one seed
+    alone = Simulator()
+    alone.reset(seeds=[7])
+    assert np.array_equal(sim.state([1]), alone.state())
+
+
 @pytest.mark.parametrize("seed", [1.7, True, -1, 2**63, "0"])
 def test_bad_seeds_are_named_by_every_api(seed):
     match = re.escape(repr(seed))

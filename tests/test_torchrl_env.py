@@ -4,6 +4,7 @@ import inspect
 import math
 import warnings
 
+import numpy as np
 import pytest
 import torch
 from conftest import assert_same_view, goal_seeking_move
@@ -71,6 +72,19 @@ def test_specs_external_mode():
     assert env.full_action_spec["mover", "action"].space.n == 3
     assert ("looker", "observation") not in env.observation_spec.keys(True)
     check_env_specs(env, seed=0)
+    env.close()
+
+
+def test_a_bad_look_is_refused_before_the_rooms_move():
+    env = make_env(num_envs=2, max_cycles=5)
+    td = env.reset()
+    before = env.sim.get_state()
+    td.set(("mover", "action"), torch.tensor([2, 2]))
+    td.set(("looker", "action"), torch.tensor([5, 1]))
+    with pytest.raises(ValueError, match=r"looker actions \[5, 1\] out of range"):
+        env.step(td)
+    after = env.sim.get_state()
+    assert np.array_equal(before["physics"], after["physics"]) and np.array_equal(before["cycle"], after["cycle"])
     env.close()
 
 
