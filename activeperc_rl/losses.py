@@ -42,6 +42,8 @@ root of each step; the looker's record of cycle ``t`` (``s_bar_t`` under
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 
 import torch
@@ -127,6 +129,16 @@ def _as_2d(tensor: torch.Tensor, name: str) -> torch.Tensor:
     return tensor
 
 
+def _flags(value: torch.Tensor, shape: torch.Size, name: str, key: NestedKey) -> torch.Tensor:
+    """The bool entry ``key`` of ``name`` (a done flag or a mask) reshaped to ``shape``; ``ValueError`` when it is not
+    bool (a float 0.3 would read as True) or holds another number of steps."""
+    if value.dtype != torch.bool:
+        raise ValueError(f"{name}'s {key!r} must be bool, got {value.dtype}.")
+    if value.numel() != shape.numel():
+        raise ValueError(f"{name}'s {key!r} of shape {tuple(value.shape)} does not fit its batch shape {tuple(shape)}.")
+    return value.reshape(shape)
+
+
 def _join(prefix: NestedKey, key: NestedKey) -> tuple[str, ...]:
     prefix = ((prefix,) if prefix else ()) if isinstance(prefix, str) else tuple(prefix)
     key = (key,) if isinstance(key, str) else tuple(key)
@@ -202,6 +214,9 @@ class MetaEvaluationLoss(LossModule):
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
+        number = isinstance(entropy_coeff, numbers.Real) and not isinstance(entropy_coeff, bool)
+        if not (number and math.isfinite(entropy_coeff) and entropy_coeff >= 0):
+            raise ValueError(f"entropy_coeff must be a finite number >= 0, got {entropy_coeff!r}.")
         if not hasattr(looker_actor, "get_dist"):
             raise TypeError(
                 "looker_actor must be a ProbabilisticTensorDictSequential (e.g. a ProbabilisticActor) "
@@ -269,12 +284,12 @@ class MetaEvaluationLoss(LossModule):
         done = tensordict.get(keys.done, None)
         if done is None:
             raise ValueError(f"{name} has no done entry {keys.done!r}.")
-        done = done.reshape(shape)
+        done = _flags(done, shape, name, keys.done)
         mask = tensordict.get(keys.mask, None)
         if mask is None:
             mask = torch.ones(shape, dtype=torch.bool, device=done.device)
         else:
-            mask = mask.reshape(shape).bool()
+            mask = _flags(mask, shape, name, keys.mask)
         ids, n = trajectory_ids(done, mask)
         if n == 0:
             raise ValueError(f"{name} has no valid step: every step is masked out by {keys.mask!r}.")
@@ -299,6 +314,9 @@ class MetaEvaluationLoss(LossModule):
         Returns:
             A tensordict with empty batch size; see the class docstring for its entries.
         """
+        for name, value in (("tensordict (D2)", tensordict), ("reference (D1)", reference)):
+            if not isinstance(value, TensorDictBase):
+                raise TypeError(f"{name} must be a TensorDict rollout, got {type(value).__name__}.")
         keys = self.tensor_keys
         record_key = keys.looker_record
         action_key = _join(record_key, keys.looker_action)
@@ -323,6 +341,15 @@ class MetaEvaluationLoss(LossModule):
         dist = self.looker_actor.get_dist(steps.exclude(keys.looker_action))
         if action.ndim == len(dist.batch_shape) + 1 and action.shape[-1] == 1:
             action = action.squeeze(-1)
+        looks = dist.logits.shape[-1]
+        if action.is_floating_point() or action.is_complex() or action.shape != dist.batch_shape:
+            raise ValueError(
+                f"the looks at {action_key!r} must be integer indices, one per step ({tuple(dist.batch_shape)}), "
+                f"got {action.dtype} of shape {tuple(action.shape)}."
+            )
+        if action.numel() and (action.min() < 0 or action.max() >= looks):
+            found = action.unique().tolist()
+            raise ValueError(f"the looks at {action_key!r} must lie in 0 .. {looks - 1}, got {found}.")
         log_prob = dist.log_prob(action).reshape(-1)
         weights = meta[ids[mask]]
         loss_looker = -(log_prob * weights).sum()

@@ -1,6 +1,7 @@
 """Meta-evaluation loss on synthetic tensordicts against hand-computed numbers (no env, no rendering)."""
 
 import math
+import re
 
 import pytest
 import torch
@@ -380,6 +381,36 @@ def test_errors():
         loss(rollout_td(), reference_td()[:, :0])  # not 'masked out': there is no mask
     with pytest.raises(NotImplementedError, match="no value estimator"):
         loss.make_value_estimator()
+
+
+@pytest.mark.parametrize("coeff", [math.nan, math.inf, -1.0, "0.1", True, None])
+def test_a_bad_entropy_coeff_is_named(coeff):
+    with pytest.raises(ValueError, match=f"entropy_coeff must be a finite number >= 0, got {re.escape(repr(coeff))}"):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), entropy_coeff=coeff)
+
+
+def test_meaningless_rollouts_are_named():
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic())
+    td = rollout_td()
+    td["next", "done"] = td["next", "done"].float() * 0.5  # a float done would have read as True
+    with pytest.raises(ValueError, match=r"\(D2\)'s \('next', 'done'\) must be bool, got torch.float32"):
+        loss(td, reference_td())
+    td = rollout_td()
+    td["collector", "mask"] = torch.ones(2, 3)
+    with pytest.raises(ValueError, match=r"'mask'\) must be bool"):
+        loss(td, reference_td())
+    ref = reference_td()
+    ref["next", "done"] = torch.zeros(2, 4, 2, dtype=torch.bool)  # two flags per step
+    with pytest.raises(ValueError, match=r"of shape \(2, 4, 2\) does not fit its batch shape \(2, 4\)"):
+        loss(rollout_td(), ref)
+    with pytest.raises(ValueError, match=r"must lie in 0 \.\. 2, got \[0, 1, 7\]"):
+        loss(rollout_td(actions=((1, 0, 7), (1, 1, 0))), reference_td())
+    td = rollout_td()
+    td["next", "looker", "action"] = td["next", "looker", "action"].float() + 0.5  # 1.5 would read as 1
+    with pytest.raises(ValueError, match="must be integer indices"):
+        loss(td, reference_td())
+    with pytest.raises(TypeError, match=r"reference \(D1\) must be a TensorDict rollout, got NoneType"):
+        loss(rollout_td(), None)
 
 
 def test_nan_at_padded_steps_does_not_reach_the_gradients():
