@@ -165,7 +165,7 @@ class ActivePerceptionEnv(EnvBase):
         if not is_int(first_room) or first_room < 0:
             raise ValueError(f"first_room={first_room!r} is invalid: expected an int >= 0")
         num_envs, first_room = int(num_envs), int(first_room)
-        super().__init__(device=device, batch_size=[num_envs])
+        super().__init__(device=torch_device(device), batch_size=[num_envs])
         self.first_room = first_room
         self.split = split
         self.config = config
@@ -386,6 +386,18 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
             f"the looker module wrote ('looker', 'action') of shape {tuple(action.shape)} and dtype "
             f"{action.dtype}: expected integers of shape ({n},) or ({n}, 1) in Discrete(3) {LOOKER_ACTIONS}"
         )
+
+
+def torch_device(device) -> torch.device:
+    """``device`` (a name such as ``"cpu"`` or ``"cuda:0"``, or a ``torch.device``) as a ``torch.device``;
+    ``ValueError`` naming it when torch knows no such device or it is a GPU that torch does not see."""
+    try:
+        resolved = torch.device(device)
+    except (RuntimeError, TypeError) as error:
+        raise ValueError(f"device={device!r} is invalid: {error}") from None
+    if resolved.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device={device!r} is invalid: torch sees no CUDA device")
+    return resolved
 
 
 def _to_numpy(action: torch.Tensor | None, n: int, agent: str) -> np.ndarray:

@@ -25,7 +25,7 @@ from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
-from activeperc_rl.envs import LOOKER, MOVER, make_env
+from activeperc_rl.envs import LOOKER, MOVER, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
 from activeperc_rl.signals import stop_raises_interrupt
 
@@ -63,6 +63,7 @@ def evaluate(
         raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
     if not is_int(seed) or not 0 <= seed <= MAX_SEED:
         raise ValueError(f"seed={seed!r} is invalid: expected an int in [0, 2**63 - 1]")
+    device = torch_device(device)
     if video is not None:
         if Path(video).suffix.lower() not in VIDEO_SUFFIXES:
             raise ValueError(f"video file {str(video)!r} must end in one of {VIDEO_SUFFIXES} (it picks the format)")
@@ -126,7 +127,7 @@ def load_policy(path: str | Path, device="cpu"):
         raise ValueError(f"{str(path)!r} does not exist: give a run directory or a checkpoint file")
     state = load_checkpoint(file)
     config = TrainConfig.from_dict(state["config"])
-    method = make_method(config, torch.device(device), start=False)
+    method = make_method(config, torch_device(device), start=False)
     restore_method(method, state, file)
     mover_policy, looker = method.policy()
     return config, mover_policy, looker

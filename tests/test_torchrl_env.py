@@ -75,6 +75,18 @@ def test_specs_external_mode():
     env.close()
 
 
+def test_a_device_torch_does_not_know_or_see_is_named():
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.evaluate import evaluate
+
+    bad = ["tpu", 5] + ([] if torch.cuda.is_available() else ["cuda"])
+    for device in bad:
+        with pytest.raises(ValueError, match=f"device={device!r} is invalid"):
+            make_env(num_envs=1, device=device)
+        with pytest.raises(ValueError, match=f"device={device!r} is invalid"):
+            evaluate(TrainConfig(), episodes=1, device=device)
+
+
 def test_a_bad_look_is_refused_before_the_rooms_move():
     env = make_env(num_envs=2, max_cycles=5)
     td = env.reset()
