@@ -81,6 +81,8 @@ class _SingleAgentVectorEnv(VectorEnv):
             options: ``{"reset_mask": (N,) bool array}`` resets only the rooms marked ``True``; as Gymnasium's
                 vector envs do, the mask is taken out of ``options``.
         """
+        if isinstance(seed, np.ndarray) and seed.ndim == 0:  # one seed as a 0-d array
+            seed = seed.item()
         seeds = self._seeds(seed)
         mask = self._reset_mask(options)
         if not self.sim.started().all() and not mask.all():
@@ -186,6 +188,8 @@ class _SingleAgentVectorEnv(VectorEnv):
 
     def _reset_mask(self, options: dict | None) -> np.ndarray:
         """``options["reset_mask"]`` taken out of ``options`` and checked (as ``SyncVectorEnv`` does), or all rooms."""
+        if options is not None and not isinstance(options, dict):
+            raise TypeError(f"options={options!r} is invalid: expected None or a dict")
         mask = options.pop("reset_mask", None) if options is not None else None
         if mask is None:
             return np.ones(self.num_envs, dtype=bool)

@@ -8,6 +8,8 @@ the episode ends at the end of the cycle in which the robot reached the goal or
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import wrappers
@@ -187,6 +189,8 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
         """One cycle: the mover's action, then the looker's; returns PettingZoo's five dicts."""
         if not self.agents:
             raise self.sim.outside_episode("step()")
+        if not isinstance(actions, Mapping):
+            raise ValueError(f"actions={actions!r} is invalid: expected a dict of actions of {self.agents}")
         unknown = sorted(set(actions) - set(self.agents))
         missing = sorted(set(self.agents) - set(actions))
         if unknown or missing:

@@ -225,3 +225,13 @@ def test_torchrl_gym_wrapper_runs_it_with_autoreset_disabled():
     assert torch.equal(done, (torch.arange(10) % 4 == 3).expand(3, 10))
     assert data["image"].shape == (3, 10, 60, 80, 3)
     env.close()
+
+
+def test_odd_reset_arguments_are_taken_or_named():
+    env = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2)
+    zero_d, _ = env.reset(seed=np.array(3))  # one seed as a 0-d array, as the one-room envs take it
+    plain, _ = env.reset(seed=3)
+    assert np.array_equal(zero_d["image"], plain["image"])
+    with pytest.raises(TypeError, match="options='x' is invalid: expected None or a dict"):
+        env.reset(options="x")
+    env.close()

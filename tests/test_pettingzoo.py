@@ -103,6 +103,9 @@ def test_bad_action_names_agent_and_space():
         par.step({MOVER: 0, LOOKER: 3})
     with pytest.raises(ValueError, match="missing"):
         par.step({MOVER: 0})
+    for actions in (None, [0, 1]):
+        with pytest.raises(ValueError, match=r"expected a dict of actions of \['mover_0', 'looker_0'\]"):
+            par.step(actions)
 
 
 def test_unknown_agent_is_named():
