@@ -154,12 +154,12 @@ class TrainConfig:
         checks = {
             "method": (self.method in METHODS, f"one of {METHODS}"),
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
-            "num_envs": (is_int(self.num_envs) and self.num_envs >= 1, "an int >= 1"),
-            "rollout_length": (is_int(self.rollout_length) and self.rollout_length >= 2, "an int >= 2"),
+            "num_envs": (_int_in(self.num_envs, 1, 2**16), "an int in 1 .. 65536"),
+            "rollout_length": (_int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
             "seed": (is_int(self.seed) and 0 <= self.seed <= MAX_SEED, "an int in [0, 2**63 - 1]"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
-            "torch_threads": (is_int(self.torch_threads) and self.torch_threads >= 0, "an int >= 0"),
-            "learner_threads": (is_int(self.learner_threads) and self.learner_threads >= 0, "an int >= 0"),
+            "torch_threads": (_int_in(self.torch_threads, 0, 4096), "an int in 0 .. 4096"),
+            "learner_threads": (_int_in(self.learner_threads, 0, 4096), "an int in 0 .. 4096"),
             "collect_workers": (
                 is_int(self.collect_workers) and is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
                 f"an int in 0 .. num_envs ({self.num_envs})",
@@ -192,11 +192,11 @@ class TrainConfig:
             "channels": (
                 isinstance(self.channels, tuple)
                 and len(self.channels) >= 1
-                and all(is_int(c) and c >= 1 for c in self.channels),
-                "one or more ints >= 1",
+                and all(_int_in(c, 1, 4096) for c in self.channels),
+                "one or more ints in 1 .. 4096",
             ),
-            "hidden_size": (is_int(self.hidden_size) and self.hidden_size >= 1, "an int >= 1"),
-            "success_window": (is_int(self.success_window) and self.success_window >= 1, "an int >= 1"),
+            "hidden_size": (_int_in(self.hidden_size, 1, 2**16), "an int in 1 .. 65536"),
+            "success_window": (_int_in(self.success_window, 1, 2**31), "an int in 1 .. 2**31"),
             "checkpoint_every": (is_number(self.checkpoint_every) and self.checkpoint_every > 0, "seconds > 0"),
             "eval_episodes": (is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),
         }
@@ -261,6 +261,11 @@ def load_yaml(path: str | Path) -> dict:
     if not isinstance(values, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
     return values
+
+
+def _int_in(value, low: int, high: int) -> bool:
+    """Whether ``value`` is an int in ``low .. high`` (upper bounds keep absurd sizes from failing deep in torch)."""
+    return is_int(value) and low <= value <= high
 
 
 def resolve_device(name: str):
