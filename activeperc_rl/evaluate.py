@@ -59,6 +59,13 @@ def evaluate(
     Returns:
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
     """
+    if not isinstance(config, TrainConfig):
+        raise TypeError(f"config={config!r} is invalid: expected a TrainConfig (TrainConfig.from_dict(mapping))")
+    if mover_policy is None and looker is not None:
+        raise ValueError("a looker was given without a mover_policy (None plays random movers and lookers)")
+    for name, module in (("mover_policy", mover_policy), ("looker", looker)):
+        if module is not None and not callable(module):
+            raise TypeError(f"{name}={module!r} is invalid: expected a module called on the env's tensordict")
     if not is_int(episodes) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
     if not is_int(seed) or not 0 <= seed <= MAX_SEED:

@@ -720,6 +720,18 @@ def test_eval_checks_the_video_path_before_it_plays(tmp_path, capsys, monkeypatc
         assert named in capsys.readouterr().err
 
 
+def test_evaluate_names_what_it_cannot_play():
+    from activeperc_rl.models import FixedLooker
+
+    for config in (None, {"env": {}}):
+        with pytest.raises(TypeError, match=f"config={config!r} is invalid: expected a TrainConfig"):
+            evaluate.evaluate(config, episodes=1)
+    with pytest.raises(ValueError, match="a looker was given without a mover_policy"):
+        evaluate.evaluate(TrainConfig(), None, FixedLooker(), episodes=1)
+    with pytest.raises(TypeError, match="mover_policy='x' is invalid"):
+        evaluate.evaluate(TrainConfig(), "x", episodes=1)
+
+
 def test_eval_is_reproducible_and_held_out(tmp_path, capsys, monkeypatch):
     config = TrainConfig(env={"max_cycles": 10})
     made = []
