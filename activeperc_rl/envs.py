@@ -388,9 +388,12 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
         )
 
 
-def torch_device(device) -> torch.device:
-    """``device`` (a name such as ``"cpu"`` or ``"cuda:0"``, or a ``torch.device``) as a ``torch.device``;
-    ``ValueError`` naming it when torch knows no such device or it is a GPU that torch does not see."""
+def torch_device(device) -> torch.device | None:
+    """``device`` (a name such as ``"cpu"`` or ``"cuda:0"``, or a ``torch.device``) as a ``torch.device``, ``None``
+    (TorchRL's env without a device) as it is; ``ValueError`` naming it when torch knows no such device or it is a GPU
+    that torch does not see."""
+    if device is None:
+        return None
     try:
         resolved = torch.device(device)
     except (RuntimeError, TypeError) as error:
