@@ -162,7 +162,7 @@ class Simulator:
         """
         ids = self._as_ids(ids, changed=True)
         if seeds is not None:
-            for i, seed in zip(ids, check_seeds(seeds, ids), strict=True):
+            for i, seed in zip(ids, _check_seeds(seeds, ids), strict=True):
                 self._rngs[i] = np.random.default_rng(seed)
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles
@@ -418,7 +418,7 @@ class _Ids:
         self.occluders = tuple(int(mocap(b)) for b in names.OCCLUDER_BODIES)
 
 
-def check_seeds(seeds, ids: np.ndarray) -> list[int]:
+def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
     """One seed per room of ``ids`` (an int is broadcast), each an int in [0, MAX_SEED]; else ``ValueError``."""
     if isinstance(seeds, np.ndarray) and seeds.ndim == 0:
         seeds = seeds.item()
