@@ -187,38 +187,33 @@ class TiledRenderer:
         mujoco.mj_camlight(self._model, self._data)
 
     def _add_view_cone(self, fov: float) -> None:
-        """Append two lines from the camera along the edges of its horizontal field of view."""
+        """Append two orange lines from the camera along the edges of its horizontal field of view."""
         cam_id = self._eye.fixedcamid
         origin = self._data.cam_xpos[cam_id].copy()
         forward = -self._data.cam_xmat[cam_id].reshape(3, 3)[:, 2]
         yaw = math.atan2(forward[1], forward[0])
         for edge in (-0.5, 0.5):
-            if self._scene.ngeom >= self._scene.maxgeom:
-                return
             angle = yaw + math.radians(fov) * edge
             tip = origin + CONE_LENGTH * np.array([math.cos(angle), math.sin(angle), 0.0])
-            geom = self._scene.geoms[self._scene.ngeom]
-            mujoco.mjv_initGeom(
-                geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.zeros(9),
-                np.array([1.0, 0.55, 0.0, 1.0], dtype=np.float32),
-            )
-            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, origin, tip)
-            self._scene.ngeom += 1
+            self._add_line(origin, tip, (1.0, 0.55, 0.0))
 
     def _add_heading(self) -> None:
-        """Append a line from the base's centre along its heading (the cone shows heading plus pan)."""
-        if self._scene.ngeom >= self._scene.maxgeom:
-            return
+        """Append a white line from the base's centre along its heading (the cone shows heading plus pan)."""
         base = self._model.body(names.BASE_BODY).id
         origin = self._data.xpos[base] + np.array([0.0, 0.0, 0.1])  # above the chassis, so that it is drawn on top
         forward = self._data.xmat[base].reshape(3, 3)[:, 0] * np.array([1.0, 1.0, 0.0])
-        tip = origin + HEADING_LENGTH * forward / max(np.linalg.norm(forward), 1e-9)
+        self._add_line(origin, origin + HEADING_LENGTH * forward / max(np.linalg.norm(forward), 1e-9), (1.0, 1.0, 1.0))
+
+    def _add_line(self, start: np.ndarray, end: np.ndarray, rgb: tuple[float, float, float]) -> None:
+        """Append a 3-pixel line from ``start`` to ``end`` to the scene (nothing when the scene is full)."""
+        if self._scene.ngeom >= self._scene.maxgeom:
+            return
         geom = self._scene.geoms[self._scene.ngeom]
         mujoco.mjv_initGeom(
             geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.zeros(9),
-            np.array([1.0, 1.0, 1.0, 1.0], dtype=np.float32),
+            np.array([*rgb, 1.0], dtype=np.float32),
         )
-        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, origin, tip)
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, start, end)
         self._scene.ngeom += 1
 
     def __del__(self):
