@@ -95,7 +95,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         if args.config is not None:
             raise ValueError("--resume takes the run's own config.yaml; drop --config")
         return load_run_config(args.out).replace(**flags)
-    values = load_yaml(args.config) if args.config else {}
+    values = load_yaml(args.config) if args.config is not None else {}
     env = values.pop("env", None)
     env = {} if env is None else env  # "env:" with nothing under it
     if not isinstance(env, dict):
@@ -110,7 +110,8 @@ def unused_options_warning(args: argparse.Namespace, config: TrainConfig) -> str
     (also on ``--resume``, whose options are the run's own)."""
     if args.resume:
         return None
-    given = [k for k in vars(args) if k not in RUN_OPTIONS] + (list(load_yaml(args.config)) if args.config else [])
+    preset = load_yaml(args.config) if args.config is not None else {}
+    given = [k for k in vars(args) if k not in RUN_OPTIONS] + list(preset)
     unused = config.unused(dict.fromkeys(given))
     if not unused:
         return None

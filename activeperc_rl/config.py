@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -238,19 +239,28 @@ class TrainConfig:
 
 
 def load_yaml(path: str | Path) -> dict:
-    """Read a YAML preset (a mapping); a missing or empty file, invalid YAML or a non-mapping raises ``ValueError``.
+    """Read a YAML preset (a mapping); a missing, empty or non-UTF-8 file, invalid YAML, a key given twice or a
+    non-mapping raises ``ValueError``.
 
     Numbers in exponent notation without a dot (``3e-5``, ``1E4``) are read as numbers, as YAML 1.2 and most
     users read them, not as the strings of PyYAML's YAML 1.1; a whole number in exponent notation (``2e6``) is
     an int, so that it fits int options such as ``frames``.
     """
+    if str(path) == "":
+        raise ValueError("config file '' is not a file name: give a YAML file")
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"config file {str(path)!r} is a directory: give a YAML file")
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"config file {str(path)!r} does not exist")
+    if not path.is_file():
+        raise ValueError(f"config file {str(path)!r} is not a regular file: give a YAML file")
     try:
-        values = yaml.load(path.read_text(), Loader=_Loader)
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"config file {str(path)!r} is not UTF-8 text (byte {error.start})") from None
+    try:
+        values = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -313,6 +323,18 @@ class _Loader(yaml.SafeLoader):
         if "e" in str(node.value).lower() and math.isfinite(value) and value.is_integer():
             return int(value)
         return value
+
+    def construct_mapping(self, node, deep=False):
+        """A mapping; a key given twice raises ``yaml.constructor.ConstructorError`` at its second place."""
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, Hashable) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"option {key!r} is given twice", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)

@@ -443,20 +443,34 @@ def test_preset_numbers_in_exponent_notation(tmp_path):
         ("", "holds no options"),
         ("fov: 100\n", "['fov'] are environment options: put them under 'env:'"),
         ("# frames: 300\n", "holds no options"),
+        ("frames: 10\nseed: 1\nframes: 20\n", "at line 3, column 1: option 'frames' is given twice\n"),
+        ("env:\n  fov: 60\n  fov: 90\n", "at line 3, column 3: option 'fov' is given twice\n"),
+        (b"frames: \xff\n", "is not UTF-8 text (byte 8)\n"),
     ],
 )
 def test_bad_preset_values_are_named(tmp_path, capsys, text, named):
     preset = tmp_path / "p.yaml"
-    preset.write_text(text)
+    preset.write_bytes(text if isinstance(text, bytes) else text.encode())
     assert cli.main(["--config", str(preset), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert named in err and err.count("\n") == 1, err
     assert not (tmp_path / "run").exists()
 
 
-def test_a_preset_that_is_a_directory_is_named(tmp_path, capsys):
-    assert cli.main(["--config", str(tmp_path), "--out", str(tmp_path / "run"), "--no-progress"]) == 2
-    assert f"config file {str(tmp_path)!r} is a directory" in capsys.readouterr().err
+@pytest.mark.parametrize(
+    ("preset", "named"),
+    [
+        (None, "is a directory: give a YAML file"),
+        ("", "config file '' is not a file name"),
+        ("/dev/null", "config file '/dev/null' is not a regular file"),
+        ("missing.yaml", "missing.yaml' does not exist"),
+    ],
+)
+def test_a_preset_that_is_no_yaml_file_is_named(tmp_path, capsys, preset, named):
+    preset = str(tmp_path) if preset is None else preset if preset in ("", "/dev/null") else str(tmp_path / preset)
+    assert cli.main(["--config", preset, "--out", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert named in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
 
 
 def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
