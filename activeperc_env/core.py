@@ -30,6 +30,8 @@ LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
 MAX_SEED = 2**63 - 1  # the largest seed a room takes (seeds travel as int64 through the batched APIs)
+MAX_ENVS = 2**16  # the most rooms one simulator holds (a room takes about 0.6 MB, its view included)
+STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what get_state returns
 
 
 @dataclass
@@ -76,8 +78,8 @@ class Simulator:
     def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, nthread: int = 0):
         if config is not None and not isinstance(config, EnvConfig):
             raise TypeError(f"config={config!r} is invalid: expected an EnvConfig (EnvConfig(**options)) or None")
-        if not is_int(num_envs) or num_envs < 1:
-            raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
+        if not is_int(num_envs) or not 1 <= num_envs <= MAX_ENVS:
+            raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int in 1 .. {MAX_ENVS}")
         if not is_int(nthread) or nthread < 0:
             raise ValueError(f"nthread={nthread!r} is invalid: expected an int >= 0 (0: every core)")
         self.config = config if config is not None else EnvConfig()
@@ -121,6 +123,9 @@ class Simulator:
 
     def set_state(self, state: dict) -> None:
         """Restore what :meth:`get_state` returned; ``ValueError`` when it is of another config or number of rooms."""
+        missing = [key for key in STATE_KEYS if key not in state] if isinstance(state, dict) else list(STATE_KEYS)
+        if missing:
+            raise ValueError(f"a state without {missing} is not one of get_state()'s")
         ours = dataclasses.asdict(self.config)
         if state["config"] != ours:
             differ = sorted(k for k in ours.keys() | state["config"].keys() if state["config"].get(k) != ours.get(k))

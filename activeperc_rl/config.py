@@ -22,7 +22,7 @@ import yaml
 
 from activeperc_env import EnvConfig
 from activeperc_env.config import is_int, is_number, normalize_numbers, with_field_docs
-from activeperc_env.core import MAX_SEED
+from activeperc_env.core import MAX_ENVS, MAX_SEED
 from activeperc_rl.atomic import atomic_path
 
 METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
@@ -155,7 +155,7 @@ class TrainConfig:
         checks = {
             "method": (self.method in METHODS, f"one of {METHODS}"),
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
-            "num_envs": (_int_in(self.num_envs, 1, 2**16), "an int in 1 .. 65536"),
+            "num_envs": (_int_in(self.num_envs, 1, MAX_ENVS), f"an int in 1 .. {MAX_ENVS}"),
             "rollout_length": (_int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
             "seed": (is_int(self.seed) and 0 <= self.seed <= MAX_SEED, "an int in [0, 2**63 - 1]"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),

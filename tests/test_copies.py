@@ -2,6 +2,7 @@
 
 import copy
 import pickle
+import re
 
 import gymnasium
 import numpy as np
@@ -148,3 +149,12 @@ def test_a_state_of_another_config_is_refused():
     empty, default = Simulator(EnvConfig(num_obstacles=0), nthread=1), Simulator(nthread=1)
     with pytest.raises(ValueError, match=r"another config \(differs in \['num_obstacles'\]\)"):
         default.set_state(empty.get_state())
+
+
+def test_a_state_that_is_not_get_states_is_named():
+    sim = Simulator(nthread=1)
+    state = sim.get_state()
+    del state["rngs"], state["done"]
+    for bad, missing in (({}, "['config', 'physics', 'cycle', 'done', 'rngs']"), (state, "['done', 'rngs']")):
+        with pytest.raises(ValueError, match=re.escape(f"a state without {missing} is not one of get_state()'s")):
+            sim.set_state(bad)

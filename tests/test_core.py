@@ -173,8 +173,9 @@ def test_bad_actions_name_the_agent_and_its_space(bad):
 
 
 def test_bad_num_envs_nthread_config_and_ids_are_named():
-    with pytest.raises(ValueError, match="num_envs=0"):
-        Simulator(num_envs=0)
+    for num_envs in (0, 2**16 + 1, 2**63):
+        with pytest.raises(ValueError, match=f"num_envs={num_envs} is invalid: expected an int in 1 .. 65536"):
+            Simulator(num_envs=num_envs)
     for nthread in (-1, 1.5, None):
         with pytest.raises(ValueError, match=f"nthread={nthread}"):
             Simulator(num_envs=2, nthread=nthread)
