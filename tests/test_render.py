@@ -58,15 +58,32 @@ def test_map_shows_goal_and_occluders():
     assert red.sum() > 50 and blue.sum() > 50
 
 
+def test_map_shows_every_wall_whole():
+    """The walls' outer faces (x = -+3.1 m, y = -+2.1 m) lie inside the map, with a margin of background around."""
+    sim = Simulator()
+    sim.reset(seeds=[7])
+    image = sim.render_map().astype(int)
+    wall = (image > 200).all(axis=-1)
+    background = (image == 0).all(axis=-1)
+    middle_row, middle_column = image[120], image[:, 160]
+    for line, outer in ((middle_row, 160 - 3.1 * 50), (middle_column, 120 - 2.1 * 50)):
+        edge = int(round(outer))
+        inside = (line[edge : edge + 5] > 200).all(axis=-1)
+        beyond = (line[:edge] == 0).all(axis=-1)
+        assert inside.all() and beyond.all() and edge >= 5, (edge, line[: edge + 5].tolist())
+    assert (wall[:, ::-1] == wall).mean() > 0.99 and (wall[::-1] == wall).mean() > 0.99  # the room is centred
+    assert background[:5].all() and background[:, :5].all() and background[-5:].all() and background[:, -5:].all()
+
+
 def test_map_is_north_up_with_the_view_cone_where_the_camera_looks():
-    """The map's camera sees 4.6 m of the room's height on 240 rows, centred on the room, +x right and +y up; the
-    cone shows where the camera looks, a white line the base's heading."""
+    """The map's camera sees 4.8 m of the room's height on 240 rows (50 pixels a metre), centred on the room, +x
+    right and +y up; the cone shows where the camera looks, a white line the base's heading."""
     sim = Simulator(EnvConfig(pan_step=90.0))
     sim.reset(seeds=[3])
     sim.look([2])  # the camera turns 90 degrees to the right of the heading
 
     def pixel(xy):  # (row, column) of a point of the floor
-        scale = 240 / 4.6
+        scale = 240 / 4.8
         return np.array([120 - xy[1] * scale, 160 + xy[0] * scale])
 
     image = sim.render_map().astype(int)

@@ -73,7 +73,7 @@ def save_figures(seed: int, out: Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     figure, axis = plt.subplots(figsize=(6.4, 4.8))
     axis.imshow(room_map)
-    axis.set_title(f"(a) bird's-eye view, seed {seed} (red: goal; cone: {FOVS[0]:.0f} degree view; white: heading)")
+    axis.set_title(f"(a) bird's-eye view, seed {seed}\nred: goal; cone: {FOVS[0]:.0f} degree view; white: heading")
     axis.axis("off")
     paths = [out / "fig1_map.png", out / "fig1_obs.png"]
     _save(figure, paths[0])
