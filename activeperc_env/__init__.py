@@ -3,7 +3,9 @@
 PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
 Gymnasium (registered on import): ``activeperc/Joint-v0``, ``activeperc/FixedForward-v0``; ``gymnasium.make_vec``
 steps all their rooms in one batched core (:class:`JointVectorEnv`, :class:`FixedForwardVectorEnv`).
-Batched core for training: :class:`Simulator`.
+Batched core for training: :class:`Simulator`. Options of every env: :class:`EnvConfig`. Agent names
+:data:`MOVER` and :data:`LOOKER`; action meanings :data:`MOVER_ACTIONS` and :data:`LOOKER_ACTIONS`.
+Single-agent classes behind the Gymnasium ids: :class:`JointEnv`, :class:`FixedForwardEnv`.
 """
 
 from activeperc_env.gl import choose_backend

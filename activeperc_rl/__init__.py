@@ -1,6 +1,6 @@
 """activeperc_rl: TorchRL training of the mover and the looker (meta-evaluation and baselines).
 
-Entry points: :func:`make_env` (the batched TorchRL env), :class:`TrainConfig`,
+Entry points: :func:`make_env` (the batched TorchRL env, an :class:`ActivePerceptionEnv`), :class:`TrainConfig`,
 :class:`MetaEvaluationLoss`, ``activeperc_rl.train.train`` and ``activeperc_rl.evaluate.evaluate``
 (and the console scripts ``activeperc-train`` and ``activeperc-eval``).
 """

@@ -1,7 +1,10 @@
 """Files written so that a kill at any moment leaves the previous version whole.
 
-Every file a run or a benchmark leaves (checkpoint, metrics, config, results, plots, videos) is
-written to a temporary file beside its destination, flushed to disk, and renamed over it.
+Each file a run or a benchmark writes whole (checkpoint, config, eval.json, results, plots, videos) is
+written to a temporary file beside its destination, flushed to disk, and renamed over it. Two are not:
+``metrics.csv`` is rewritten this way when a run starts or resumes and then takes one flushed row per
+iteration (a kill mid-row leaves a torn last row, which a resume drops), and TensorBoard's event files are
+TensorBoard's own.
 """
 
 from __future__ import annotations

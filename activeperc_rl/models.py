@@ -145,7 +145,8 @@ def make_joint_policy(actor) -> TensorDictSequential:
 
 
 class EpsilonGreedyLooker(nn.Module):
-    """E2's looker: ``argmax`` of ``phi2``'s logits with probability ``1 - epsilon``, else a uniform random look.
+    """Epsilon-greedy looker: ``argmax`` of the actor's logits with probability ``1 - epsilon``, else a uniform
+    random look (E2's with ``phi2``; E1's greedy ``phi1`` with ``epsilon`` 0).
 
     Reads ``("looker", "observation")`` and writes ``("looker", "action")`` (the paper's eq. after (3)).
     """
