@@ -31,8 +31,8 @@ class TiledRenderer:
     Args:
         model: the compiled scene (its offscreen buffer size is set here).
         width, height: size of one first-person view in pixels.
-        max_views: the views the offscreen buffer is sized for (one pass draws them all as tiles; a ``render``
-            call with more takes several passes).
+        max_views: the views the offscreen buffer is sized for: one pass draws them all as tiles, up to a
+            buffer of ``MAX_BUFFER`` pixels a side; a ``render`` call with more views takes several passes.
     """
 
     def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int):
@@ -69,15 +69,12 @@ class TiledRenderer:
         """Views drawn before one read-back: view ``k`` of a call lands in tile ``k % views_per_pass``."""
         return self.cols * self.rows
 
-    def render(
-        self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray | None = None, tiles: np.ndarray | None = None
-    ) -> np.ndarray:
+    def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, tiles: np.ndarray | None = None) -> np.ndarray:
         """First-person views of the simulations whose states are given.
 
         Args:
             qpos: (n, nq) joint positions.
             mocap_pos: (n, nmocap, 3) positions of the goal and occluders.
-            out: optional (n, height, width, 3) uint8 array to write into.
             tiles: optional (n,) distinct tiles (below ``views_per_pass``) to draw the views in, all in one
                 pass; by default view ``k`` is drawn in tile ``k % views_per_pass``. The rasteriser rounds
                 edges and shades a little differently in another tile (pixels one level darker or lighter, rarely
@@ -87,8 +84,7 @@ class TiledRenderer:
             (n, height, width, 3) uint8 images, top row first.
         """
         n = len(qpos)
-        if out is None:
-            out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
+        out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
         per_pass = self.views_per_pass
         if tiles is None:
             with self._current():

@@ -270,9 +270,9 @@ def _count_drawn_views(sim):
     """Wrap ``sim.renderer.render`` to count the views it draws; returns the list of counts per call."""
     calls, draw = [], sim.renderer.render
 
-    def counting(qpos, mocap_pos, out=None, tiles=None):
+    def counting(qpos, mocap_pos, tiles=None):
         calls.append(len(qpos))
-        return draw(qpos, mocap_pos, out, tiles)
+        return draw(qpos, mocap_pos, tiles)
 
     sim.renderer.render = counting
     return calls
