@@ -1,7 +1,8 @@
 """The batched simulator core: N rooms, their physics, episode logic and rendering.
 
-Every adapter (PettingZoo, Gymnasium, TorchRL) drives this one class, so the same seed gives
-the same episode through every API. One cycle of the paper's section 2 is two calls:
+Every adapter (PettingZoo, Gymnasium, TorchRL) drives this one class, so the same episode seed gives
+the same episode through every API (the TorchRL env draws each room's episode seeds from its base seed:
+its ``episode_seeds`` are what to give the others). One cycle of the paper's section 2 is two calls:
 
 1. ``move(u_m)``: the wheels are driven for one control period; reward, termination and
    truncation are computed; ``render()`` then gives ``s_bar``, the looker's observation.
@@ -28,6 +29,7 @@ from activeperc_env.render import TiledRenderer
 MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
+JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
 MAX_SEED = 2**63 - 1  # the largest seed a room takes (seeds travel as int64 through the batched APIs)
 MAX_ENVS = 2**16  # the most rooms one simulator holds (a room takes about 0.6 MB, its view included)
@@ -435,6 +437,11 @@ def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
         if not (is_int(seed) and 0 <= seed <= MAX_SEED):
             raise ValueError(f"seed {seed!r} is invalid: expected an int in [0, 2**63 - 1]")
     return [int(seed) for seed in seeds]
+
+
+def split_joint(action):
+    """``(u_m, u_c)`` of joint actions ``a = 3 u_m + u_c`` (an int or a numpy array of them)."""
+    return divmod(action, len(LOOKER_ACTIONS))
 
 
 def check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:

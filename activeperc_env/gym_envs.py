@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 
 from activeperc_env.config import EnvConfig
-from activeperc_env.core import HOLD, Simulator
+from activeperc_env.core import HOLD, JOINT_ACTIONS, Simulator, split_joint
 from activeperc_env.spaces import check_action, mover_space, observation_space
 from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
 
@@ -48,9 +48,6 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
             {"cycle": int(self.sim.cycle[0])},
         )
 
-    def _observe(self) -> dict:
-        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
-
     def _split(self, action) -> tuple[int, int]:
         raise NotImplementedError
 
@@ -89,10 +86,10 @@ class JointEnv(_SingleAgentEnv):
 
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode, **config)
-        self.action_space = gym.spaces.Discrete(9)
+        self.action_space = gym.spaces.Discrete(JOINT_ACTIONS)
 
     def _split(self, action) -> tuple[int, int]:
-        return divmod(check_action("joint agent", action, self.action_space), 3)
+        return split_joint(check_action("joint agent", action, self.action_space))
 
 
 class FixedForwardEnv(_SingleAgentEnv):

@@ -15,7 +15,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from activeperc_env.config import EnvConfig, is_int
-from activeperc_env.core import HOLD, MAX_SEED, Simulator
+from activeperc_env.core import HOLD, JOINT_ACTIONS, MAX_SEED, Simulator, split_joint
 from activeperc_env.spaces import mover_space, observation_space
 
 
@@ -225,10 +225,10 @@ class JointVectorEnv(_SingleAgentVectorEnv):
     """N rooms of ``activeperc/Joint-v0``: actions ``3 * u_m + u_c``, one ``Discrete(9)`` per room."""
 
     def _agent_space(self) -> gym.spaces.Discrete:
-        return gym.spaces.Discrete(9)
+        return gym.spaces.Discrete(JOINT_ACTIONS)
 
     def _split(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return np.divmod(actions, 3)
+        return split_joint(actions)
 
 
 class FixedForwardVectorEnv(_SingleAgentVectorEnv):

@@ -31,7 +31,7 @@ from torch import nn
 from torchrl.collectors import Collector
 from torchrl.objectives import A2CLoss, ValueEstimators
 
-from activeperc_env.core import usable_cpus
+from activeperc_env.core import JOINT_ACTIONS, usable_cpus
 from activeperc_rl.checkpoint import collector_state, load_collector_state
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
@@ -339,7 +339,7 @@ class Joint(Method):
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.actor, _, self.loss = self._actor_critic(
-            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=NUM_ACTIONS * NUM_ACTIONS
+            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=JOINT_ACTIONS
         )
         start_holding(self.actor, config.looker_hold_prob)
         self.joint_policy = make_joint_policy(self.actor)
