@@ -57,9 +57,6 @@ class _Adapter(OneRoomRendering):
         self.sim.reset(seeds=None if seed is None else [seed])
         self.agents = list(self.possible_agents)
 
-    def _observe_now(self) -> dict:
-        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
-
     def _known(self, agent):
         if agent not in self.possible_agents:
             raise ValueError(f"unknown agent {agent!r}: expected one of {self.possible_agents}")
@@ -118,7 +115,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         self.terminations = dict.fromkeys(self.agents, False)
         self.truncations = dict.fromkeys(self.agents, False)
         self.infos = {agent: {} for agent in self.agents}
-        obs = self._observe_now()
+        obs = self._observe()
         self._obs = {MOVER: obs, LOOKER: obs}
         self._pending = (False, False)
         self.agent_selection = MOVER
@@ -150,12 +147,12 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
             result = self.sim.move(np.array([action]))
             self.rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
             self._pending = (bool(result.terminated[0]), bool(result.truncated[0]))
-            self._obs[LOOKER] = self._observe_now()
+            self._obs[LOOKER] = self._observe()
             self.agent_selection = LOOKER
         else:
             self.sim.look(np.array([action]))
             self.rewards = dict.fromkeys(self.agents, 0.0)
-            self._obs[MOVER] = self._observe_now()
+            self._obs[MOVER] = self._observe()
             terminated, truncated = self._pending
             self.terminations = dict.fromkeys(self.agents, terminated)
             self.truncations = dict.fromkeys(self.agents, truncated)
@@ -180,7 +177,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode; returns ``(observations, infos)`` (``options`` are ignored)."""
         self._reset_sim(seed)
-        obs = self._observe_now()
+        obs = self._observe()
         if self.render_mode == "human":
             self.render()
         return {agent: _copy(obs) for agent in self.agents}, {agent: {} for agent in self.agents}
@@ -199,7 +196,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
         look = check_action(LOOKER, actions[LOOKER], self.action_spaces[LOOKER])
         result = self.sim.move(np.array([move]))
         self.sim.look(np.array([look]))
-        obs = self._observe_now()
+        obs = self._observe()
         rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
         agents = self.agents

@@ -13,7 +13,8 @@ RENDER_MODES = ["human", "rgb_array"]
 
 
 class OneRoomRendering:
-    """``render()`` and ``close()`` of the PettingZoo and Gymnasium envs, over room 0 of ``self.sim``."""
+    """Room 0 of ``self.sim`` as the PettingZoo and Gymnasium envs show it: its observation, ``render()`` and
+    ``close()``."""
 
     sim: Simulator
 
@@ -23,6 +24,10 @@ class OneRoomRendering:
             raise ValueError(f"render_mode={render_mode!r} is invalid: expected None or one of {RENDER_MODES}")
         self.render_mode = render_mode
         self._viewer = HumanViewer() if render_mode == "human" else None
+
+    def _observe(self) -> dict:
+        """Room 0's observation as it is now: its first-person view and camera pan."""
+        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
 
     def render(self):
         """``rgb_array``: the bird's-eye map (240x320x3 uint8); ``human``: MuJoCo's viewer (``None``)."""
