@@ -132,8 +132,6 @@ class _Egl:
     DRAW, READ = 0x3059, 0x305A  # EGL_DRAW, EGL_READ
 
     def __init__(self, context):
-        from mujoco import egl
-
         lib = ctypes.CDLL(ctypes.util.find_library("EGL"))
         lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
         lib.eglMakeCurrent.restype = ctypes.c_uint
@@ -143,17 +141,24 @@ class _Egl:
         lib.eglGetCurrentSurface.restype = ctypes.c_void_p
         lib.eglGetError.restype = ctypes.c_int
         self._lib = lib
-        self._display, self._context = egl.EGL_DISPLAY.address, context._context.address
+        previous = self._current()
+        context.make_current()  # MuJoCo's own call, once, to learn its display and context handles
+        self._display, self._context = lib.eglGetCurrentDisplay(), lib.eglGetCurrentContext()
+        self.restore(previous)
 
-    def make_current(self) -> tuple:
-        """Make the context current; returns the display, surfaces and context current before."""
+    def _current(self) -> tuple:
+        """The display, draw and read surfaces and context current in the calling thread."""
         lib = self._lib
-        previous = (
+        return (
             lib.eglGetCurrentDisplay(),
             lib.eglGetCurrentSurface(self.DRAW),
             lib.eglGetCurrentSurface(self.READ),
             lib.eglGetCurrentContext(),
         )
+
+    def make_current(self) -> tuple:
+        """Make the context current; returns the display, surfaces and context current before."""
+        previous = self._current()
         self._switch(self._display, None, None, self._context)
         return previous
 
