@@ -114,12 +114,17 @@ class EnvConfig:
                 )
 
     @classmethod
-    def from_kwargs(cls, **kwargs) -> EnvConfig:
-        """Build a config from keyword arguments, naming any unknown one in a ``ValueError``."""
+    def from_kwargs(cls, hint: str = "", **kwargs) -> EnvConfig:
+        """Build a config from keyword arguments; an unknown one raises :class:`UnknownOptionError` naming it,
+        worded as Python words an unexpected keyword argument, ``hint`` after it."""
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(kwargs) - known)
         if unknown:
-            raise ValueError(f"unknown env option(s) {unknown}; known options: {sorted(known)}")
+            names = ", ".join(repr(name) for name in unknown)
+            what = "arguments {}: not env options" if len(unknown) > 1 else "argument {}: not an env option"
+            raise UnknownOptionError(
+                f"unexpected keyword {what.format(names)}{hint}; known options: {sorted(known)}"
+            )
         return cls(**kwargs)
 
     @property
@@ -127,6 +132,12 @@ class EnvConfig:
         """MuJoCo's vertical field of view (degrees) for the horizontal ``fov`` and the aspect."""
         half = math.radians(self.fov) / 2
         return math.degrees(2 * math.atan(math.tan(half) * self.height / self.width))
+
+
+class UnknownOptionError(TypeError, ValueError):
+    """An env option that :class:`EnvConfig` does not have: a ``TypeError`` as for any unexpected keyword argument
+    (tools such as TorchRL's ``GymEnv`` drop an argument the env refuses that way), and a ``ValueError`` as for
+    any other bad option."""
 
 
 def physics_steps(control_hz: float) -> int:

@@ -18,7 +18,13 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
 
     def __init__(self, render_mode: str | None = None, **config):
         self._setup_rendering(render_mode)
-        self.config = EnvConfig.from_kwargs(**config)
+        hint = (
+            " (an option of the rooms stepped together by gymnasium.make_vec's default mode; with "
+            "vectorization_mode 'sync' or 'async' pass vector_kwargs={'autoreset_mode': ...})"
+            if "autoreset_mode" in config
+            else ""
+        )
+        self.config = EnvConfig.from_kwargs(hint, **config)
         self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
         self.observation_space = observation_space(self.config)

@@ -2,6 +2,7 @@
 
 import pydoc
 
+import gymnasium
 import numpy as np
 import pytest
 
@@ -45,8 +46,16 @@ def test_control_period_is_whole_physics_steps(hz, steps):
 
 
 def test_unknown_option_is_named():
-    with pytest.raises(ValueError, match="colour"):
-        activeperc_env.parallel_env(colour="red")
+    for error in (ValueError, TypeError):  # TypeError as for any unexpected keyword argument
+        with pytest.raises(error, match="unexpected keyword argument 'colour': not an env option"):
+            activeperc_env.parallel_env(colour="red")
+    with pytest.raises(ValueError, match="unexpected keyword arguments 'a', 'b': not env options"):
+        EnvConfig.from_kwargs(b=1, a=2)
+
+
+def test_autoreset_mode_given_to_one_room_says_where_it_goes():
+    with pytest.raises(ValueError, match=r"vector_kwargs=\{'autoreset_mode': ...\}"):
+        gymnasium.make_vec("activeperc/Joint-v0", 2, vectorization_mode="sync", autoreset_mode="SameStep")
 
 
 def test_empty_room_is_allowed():

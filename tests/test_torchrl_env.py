@@ -10,7 +10,7 @@ import torch
 from conftest import assert_same_view, goal_seeking_move
 from tensordict.nn import ProbabilisticTensorDictModule, ProbabilisticTensorDictSequential, TensorDictModule
 from torchrl.collectors import Collector
-from torchrl.envs import PettingZooWrapper
+from torchrl.envs import GymEnv, PettingZooWrapper
 from torchrl.envs.utils import check_env_specs
 
 import activeperc_env
@@ -344,6 +344,17 @@ def test_pettingzoo_wrapper_aec():
     assert data["mover_0", "observation", "image"].shape == (14, 1, 60, 80, 3)
     assert (data["mover_0", "observation", "pan"][6] == 0).all()
     env.close()
+
+
+def test_torchrl_gym_env_builds_the_gymnasium_ids():
+    """TorchRL's GymEnv passes frameskip= and drops it when the env refuses it as an unexpected keyword (TypeError)."""
+    for env_id in ("activeperc/Joint-v0", "activeperc/FixedForward-v0"):
+        env = GymEnv(env_id, max_cycles=3)
+        check_env_specs(env, seed=0)
+        data = env.rollout(6, break_when_any_done=False)
+        assert data["image"].shape == (6, 60, 80, 3)
+        assert torch.equal(data["next", "done"].squeeze(-1), torch.arange(6) % 3 == 2)
+        env.close()
 
 
 def test_pettingzoo_wrapper_reads_the_global_state():
