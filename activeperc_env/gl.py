@@ -12,7 +12,9 @@ FORK_HELP = (
     "fork: making a GL context here would hang. Start the process with the 'spawn' method instead, e.g. "
     "multiprocessing.get_context('spawn'), or for Gymnasium's async vector env "
     "gymnasium.make_vec(..., vectorization_mode='async', vector_kwargs={'context': 'spawn'}), or for "
-    "Stable-Baselines3 SubprocVecEnv(..., start_method='spawn')."
+    "Stable-Baselines3 SubprocVecEnv(..., start_method='spawn'); for tools that take no start method (SuperSuit's "
+    "concat_vec_envs_v1 with num_cpus > 0), call multiprocessing.set_start_method('spawn') at the start of the "
+    "program."
 )
 EGL_HELP = (
     "activeperc renders headless through EGL, but libEGL was not found. Install it, e.g. "

@@ -70,7 +70,10 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         A differential-drive robot must reach a red box in a room where green, yellow and blue
         boxes hide it. ``mover_0`` drives the base; ``looker_0`` pans the camera. They act in
         turns: the mover moves (the wheels run for one control period), then the looker sees
-        the result and turns the camera (no time passes), then the mover sees that view.
+        the result and turns the camera (no time passes), then the mover sees that view. For both
+        agents acting on the same view use :class:`parallel_env`, not PettingZoo's ``aec_to_parallel``
+        of this env (it refuses this env, which does not set ``is_parallelizable``: setting it would
+        give a game where the looker acts on another view than the mover).
 
     Action Space:
         ``mover_0``: ``Discrete(3)`` 0 turn left, 1 turn right, 2 forward.
