@@ -37,6 +37,7 @@ METHOD_OPTIONS = {
     "resample_d1": ("meta",),
     "e1_looks": ("meta",),
     "mover_rollouts": ("meta",),
+    "looker_importance_weights": ("meta",),
     "looker_lr": ("meta", "ia2c"),
     "looker_entropy_coeff": ("meta", "ia2c"),
     "looker_hold_prob": ("meta", "ia2c", "joint", "curriculum"),
@@ -127,6 +128,11 @@ class TrainConfig:
     the meta step, which reads w1 as the paper does), then one on the D1 sampled after the soft update; every
     step is on-policy, and the mover learns from every frame, as the baselines' movers do. 'd1' (the paper):
     only the step on the new D1, a third of the frames."""
+    looker_importance_weights: bool = False
+    """'meta': weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it. The
+    paper does not (False): its gradient then has the bias mean(M) * (b - pi_phi2) on phi2's logits, so while E2
+    scores below E1 on average, every look E2 explores more often than phi2 would take it is pushed down
+    (activeperc_rl/losses.py)."""
     curriculum_fraction: float = 0.3
     """'curriculum': fraction of the frames spent pre-training the joint agent in a room without obstacles."""
     channels: tuple[int, ...] = (16, 32)
@@ -179,6 +185,7 @@ class TrainConfig:
             "epsilon": (is_number(self.epsilon) and 0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
             "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
             "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
+            "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
             "alpha": (is_number(self.alpha) and 0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
             "looker_hold_prob": (
                 is_number(self.looker_hold_prob) and 0.0 < self.looker_hold_prob < 1.0,

@@ -23,6 +23,16 @@ divided by the number of steps with ``reduction="mean"``. ``M`` is a constant fo
 critics are evaluated without gradients. The log-probabilities are those of ``pi_phi2`` itself,
 also at the steps where the epsilon-greedy behaviour took a random look, as in the paper.
 
+Because the looks are drawn from the epsilon-greedy behaviour ``b`` and not from ``pi_phi2``, this
+gradient is biased: where ``M`` does not depend on the looks, its expectation on ``phi2``'s logits is
+``mean(M) * (b - pi_phi2)``, not 0, so a negative mean ``M`` pushes down every look ``b`` takes more
+often than ``pi_phi2`` would. With ``behaviour_epsilon=epsilon`` each term is weighted by the
+importance ratio ``rho_t = pi_phi2(u^c_t | s_bar_t) / b(u^c_t | s_bar_t)`` (detached, per step), with
+``b = (1 - epsilon) [u^c_t = argmax pi_phi2] + epsilon / |U^c|``, which removes that bias (the paper
+does not weight)::
+
+    loss_looker = - sum_k sum_{t in tau_k} rho_t log pi_phi2(u^c_t | s_bar_t) * M(tau_k)
+
 Trajectories
 ------------
 The rollouts are tensordicts of batch shape ``[B, T]`` (``B`` rooms, time last; any leading batch
@@ -160,11 +170,16 @@ class MetaEvaluationLoss(LossModule):
             evaluated on ``D2`` without gradients.
         reference_critic: ``V_w1``, the same for ``D1`` (may be the same module as ``critic``).
         entropy_coeff: weight of the entropy bonus ``loss_entropy``; ``0`` leaves it out.
+        behaviour_epsilon: ``None`` (the paper): no importance weights. A probability ``epsilon``: the looks of
+            ``D2`` were drawn epsilon-greedily from ``pi_phi2`` (argmax with probability ``1 - epsilon``, else
+            uniform), and each term is weighted by ``pi_phi2 / b`` of its look (see the module docstring);
+            ``pi_phi2``'s parameters must be those that drew ``D2``.
         reduction: ``"mean"`` divides the sums over steps by the number of valid steps of ``D2``,
             ``"sum"`` does not.
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
-    (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``meta_value``
+    (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
+    of ``rho`` over steps; 1 without ``behaviour_epsilon``), ``meta_value``
     (mean of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (the
     trajectories of ``D2``) and ``num_reference_trajectories`` (``K``, those of ``D1``).
 
@@ -210,10 +225,17 @@ class MetaEvaluationLoss(LossModule):
         reference_critic: TensorDictModule,
         *,
         entropy_coeff: float = 0.01,
+        behaviour_epsilon: float | None = None,
         reduction: str = "mean",
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
+        if behaviour_epsilon is not None and not (
+            isinstance(behaviour_epsilon, numbers.Real)
+            and not isinstance(behaviour_epsilon, bool)
+            and 0 <= behaviour_epsilon <= 1
+        ):
+            raise ValueError(f"behaviour_epsilon must be None or a probability in [0, 1], got {behaviour_epsilon!r}.")
         number = isinstance(entropy_coeff, numbers.Real) and not isinstance(entropy_coeff, bool)
         if not (number and math.isfinite(entropy_coeff) and entropy_coeff >= 0):
             raise ValueError(f"entropy_coeff must be a finite number >= 0, got {entropy_coeff!r}.")
@@ -227,6 +249,7 @@ class MetaEvaluationLoss(LossModule):
         self.critic = critic
         self.reference_critic = reference_critic
         self.reduction = reduction
+        self.behaviour_epsilon = None if behaviour_epsilon is None else float(behaviour_epsilon)
         self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
         self._entropy_bonus = float(entropy_coeff) != 0.0
 
@@ -252,7 +275,15 @@ class MetaEvaluationLoss(LossModule):
         out = ["loss_looker"]
         if self._entropy_bonus:
             out.append("loss_entropy")
-        return [*out, "entropy", "meta_value", "baseline", "num_trajectories", "num_reference_trajectories"]
+        return [
+            *out,
+            "entropy",
+            "importance_weight",
+            "meta_value",
+            "baseline",
+            "num_trajectories",
+            "num_reference_trajectories",
+        ]
 
     def _forward_value_estimator_keys(self, **kwargs) -> None:
         # No value estimator: the keys are read directly from tensor_keys.
@@ -351,7 +382,8 @@ class MetaEvaluationLoss(LossModule):
             found = action.unique().tolist()
             raise ValueError(f"the looks at {action_key!r} must lie in 0 .. {looks - 1}, got {found}.")
         log_prob = dist.log_prob(action).reshape(-1)
-        weights = meta[ids[mask]]
+        rho = self._importance_weights(dist.logits, action).reshape(-1)
+        weights = meta[ids[mask]] * rho
         loss_looker = -(log_prob * weights).sum()
         entropy = dist.entropy().reshape(-1)
         loss_entropy = -self.entropy_coeff * entropy.sum()
@@ -364,8 +396,20 @@ class MetaEvaluationLoss(LossModule):
             out.set("loss_entropy", loss_entropy)
         dtype = meta.dtype
         out.set("entropy", entropy.detach().mean())
+        out.set("importance_weight", rho.mean() if rho.numel() else torch.ones((), dtype=dtype, device=meta.device))
         out.set("meta_value", meta.mean())
         out.set("baseline", baseline.detach())
         out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
         out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
         return out
+
+    def _importance_weights(self, logits: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        """``pi_phi2(u) / b(u)`` of each look, detached; ones without ``behaviour_epsilon``."""
+        if self.behaviour_epsilon is None:
+            return torch.ones(action.shape, dtype=logits.dtype, device=logits.device)
+        with torch.no_grad():
+            looks = logits.shape[-1]
+            probs = torch.softmax(logits, dim=-1).gather(-1, action.unsqueeze(-1)).squeeze(-1)
+            greedy = action == logits.argmax(dim=-1)
+            behaviour = (1 - self.behaviour_epsilon) * greedy + self.behaviour_epsilon / looks
+            return probs / behaviour

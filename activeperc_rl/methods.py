@@ -425,7 +425,13 @@ class Meta(_MoverA2C):
         self.e1_looker = EpsilonGreedyLooker(self.phi1, 0.0) if config.e1_looks == "greedy" else self.phi1
         self.w2 = copy.deepcopy(self.critic)
         self.w2.requires_grad_(False)
-        self.meta_loss = MetaEvaluationLoss(self.phi2, self.w2, self.critic, entropy_coeff=config.looker_entropy_coeff)
+        self.meta_loss = MetaEvaluationLoss(
+            self.phi2,
+            self.w2,
+            self.critic,
+            entropy_coeff=config.looker_entropy_coeff,
+            behaviour_epsilon=config.epsilon if config.looker_importance_weights else None,
+        )
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
         self._optimizer("looker", [self.phi2], config.looker_lr)
 

@@ -251,6 +251,52 @@ def test_loss_known_log_probs():
     assert loss(rollout_td(), reference_td())["loss_looker"].item() == pytest.approx(6.0 * ln2)
 
 
+def test_importance_weights_of_the_epsilon_greedy_looks():
+    # probs (1/4, 1/2, 1/4), argmax 1; epsilon 0.3: b = (0.1, 0.8, 0.1), rho = pi / b = (2.5, 0.625, 2.5)
+    # actions row 0: 1, 0, 2 with M 2, 2, -2; row 1: 1, 1 with M 2, 2
+    # sum_t rho log pi * M = 3 * 0.625 * 2 ln(1/2) + 2.5 * 2 ln(1/4) - 2.5 * 2 ln(1/4) = -3.75 ln 2
+    # loss mean = 3.75 ln 2 / 5 = 0.75 ln 2; mean rho = (3 * 0.625 + 2 * 2.5) / 5 = 1.375
+    ln2 = math.log(2.0)
+    actor = make_actor(FixedLogits(torch.tensor([0.25, 0.5, 0.25]).log()))
+    out = MetaEvaluationLoss(actor, pan_critic(), pan_critic(), behaviour_epsilon=0.3)(rollout_td(), reference_td())
+    assert out["loss_looker"].item() == pytest.approx(0.75 * ln2)
+    assert out["importance_weight"].item() == pytest.approx(1.375)
+    out = MetaEvaluationLoss(actor, pan_critic(), pan_critic())(rollout_td(), reference_td())
+    assert out["importance_weight"].item() == 1.0 and out["loss_looker"].item() == pytest.approx(1.2 * ln2)
+
+
+@pytest.mark.parametrize("epsilon", [0.1, 0.3])
+def test_importance_weights_remove_the_bias_of_a_meta_value_the_looks_do_not_change(epsilon):
+    """Looks in the behaviour's proportions with one M for all: the weighted gradient on the logits is 0, the
+    paper's unweighted one is M * n * (b - pi) (every look taken more often than pi takes it is pushed)."""
+    pi = torch.tensor([0.025, 0.95, 0.025])
+    b = torch.tensor([epsilon / 3, 1 - epsilon + epsilon / 3, epsilon / 3])
+    counts = [int(round(n)) for n in (b * 300).tolist()]
+    actions = [look for look, n in enumerate(counts) for _ in range(n)]
+    # one trajectory of value 5 against the baseline 6: M = -1 at every step
+    td = make_td(values=[[5.0] * len(actions)], done=[[F] * len(actions)], actions=[actions])
+    for weighted, expected in ((True, torch.zeros(3)), (False, -1.0 * (b - pi))):
+        logits = FixedLogits(pi.log())
+        loss = MetaEvaluationLoss(
+            make_actor(logits),
+            pan_critic(),
+            pan_critic(),
+            entropy_coeff=0.0,
+            behaviour_epsilon=epsilon if weighted else None,
+        )
+        (-loss(td, reference_td())["loss_looker"]).backward()  # the ascent direction, per step
+        assert torch.allclose(logits.logits.grad, expected, atol=1e-6), (weighted, logits.logits.grad)
+
+
+@pytest.mark.parametrize("epsilon", [-0.1, 1.5, math.nan, "0.3", True])
+def test_a_bad_behaviour_epsilon_is_named(epsilon):
+    with pytest.raises(
+        ValueError,
+        match=f"behaviour_epsilon must be None or a probability in \\[0, 1\\], got {re.escape(repr(epsilon))}",
+    ):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), behaviour_epsilon=epsilon)
+
+
 def test_masked_steps_change_nothing():
     actor = make_actor(FixedLogits(torch.tensor([0.25, 0.5, 0.25]).log()))
     loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic())

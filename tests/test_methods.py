@@ -194,6 +194,16 @@ def test_looker_and_mover_entropy_weights_are_separate():
     assert float(meta.meta_loss.entropy_coeff) == pytest.approx(0.005)
 
 
+def test_looker_importance_weights_flag_reaches_the_meta_loss():
+    from activeperc_rl.cli import build_parser, config_from_args
+    from activeperc_rl.methods import make_method
+
+    for argv, expected in (([], None), (["--looker-importance-weights", "--epsilon", "0.1"], 0.1)):
+        args = build_parser().parse_args(["--channels", "4", "--hidden-size", "8", *argv])
+        meta = make_method(config_from_args(args), torch.device("cpu"), start=False)
+        assert meta.meta_loss.behaviour_epsilon == expected
+
+
 @pytest.mark.parametrize("e1_looks", ["greedy", "sample"])
 def test_meta_e1_looks(e1_looks):
     from activeperc_rl.config import TrainConfig
