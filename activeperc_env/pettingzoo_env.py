@@ -39,6 +39,9 @@ class _Adapter(OneRoomRendering):
         self.observation_spaces = {MOVER: obs_space, LOOKER: obs_space}
         self.action_spaces = {MOVER: mover_space(), LOOKER: looker_space()}
         self.state_space = state_space(self.config)
+        # for wrappers that draw from env.unwrapped.np_random (SuperSuit's frame_skip_v0 with a range), as in
+        # Gymnasium; reset(seed=s) seeds it. The room draws nothing from it: layouts come from the simulator.
+        self.np_random = np.random.default_rng()
 
     def observation_space(self, agent):
         """The observation space of ``agent`` (the same object on every call)."""
@@ -55,6 +58,8 @@ class _Adapter(OneRoomRendering):
 
     def _reset_sim(self, seed: int | None) -> None:
         self.sim.reset(seeds=None if seed is None else [seed])
+        if seed is not None:
+            self.np_random = np.random.default_rng(int(seed))
         self.agents = list(self.possible_agents)
 
     def _known(self, agent):

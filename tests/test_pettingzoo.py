@@ -268,3 +268,23 @@ def test_the_aec_env_is_not_converted_to_another_game():
         aec_to_parallel(activeperc_env.raw_env())
     aec = parallel_to_aec(activeperc_env.parallel_env())
     api_test(aec, num_cycles=20)
+
+
+def test_supersuit_frame_skip_draws_from_np_random_seeded_by_reset():
+    """SuperSuit's parallel frame_skip_v0 with a range draws its skips from env.unwrapped.np_random."""
+    import supersuit as ss
+
+    def play(seed):
+        env = ss.frame_skip_v0(activeperc_env.parallel_env(max_cycles=30), (1, 3))
+        env.reset(seed=seed)
+        steps, goal = 0, env.unwrapped.sim.goal_xy()
+        while env.agents:
+            env.step({"mover_0": 2, "looker_0": 1})
+            steps += 1
+        return steps, goal.tolist()
+
+    first = play(0)
+    assert first == play(0) and 10 <= first[0] < 30  # skips of 1 to 3 cycles, the same for the same seed
+    plain = activeperc_env.parallel_env()
+    plain.reset(seed=0)
+    assert plain.unwrapped.sim.goal_xy().tolist() == first[1]  # the room draws nothing from np_random
