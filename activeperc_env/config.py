@@ -114,7 +114,7 @@ class EnvConfig:
                 )
 
     @classmethod
-    def from_kwargs(cls, hint: str = "", **kwargs) -> EnvConfig:
+    def from_kwargs(cls, hint: str = "", /, **kwargs) -> EnvConfig:
         """Build a config from keyword arguments; an unknown one raises :class:`UnknownOptionError` naming it,
         worded as Python words an unexpected keyword argument, ``hint`` after it."""
         known = {f.name for f in dataclasses.fields(cls)}

@@ -51,6 +51,8 @@ def test_unknown_option_is_named():
             activeperc_env.parallel_env(colour="red")
     with pytest.raises(ValueError, match="unexpected keyword arguments 'a', 'b': not env options"):
         EnvConfig.from_kwargs(b=1, a=2)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'hint'"):  # not taken for from_kwargs' own
+        activeperc_env.parallel_env(hint="red")
 
 
 def test_autoreset_mode_given_to_one_room_says_where_it_goes():
