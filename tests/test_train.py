@@ -414,7 +414,7 @@ def test_method_only_options_match_their_docs():
 
     docs = field_docs(TrainConfig)
     documented = {name: doc.split("'")[1] for name, doc in docs.items() if doc.split()[0][-2:] == "':"}
-    assert len(documented) == 7  # epsilon, alpha, ..., curriculum_fraction
+    assert len(documented) == 8  # epsilon, alpha, ..., looker_importance_weights, curriculum_fraction
     for name, method in documented.items():
         assert METHOD_OPTIONS[name] == (method,), name
 
