@@ -277,3 +277,39 @@ def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
     assert 0 < result["boxes_drawn_when_culled"] < 8
     parts = ("context", "pose", "scene", "draw", "read")
     assert all(result[mode][part] > 0 for mode in ("whole", "culled") for part in parts)
+
+
+def test_scene_cost_variants_change_the_scene_and_restore_the_library(monkeypatch):
+    from activeperc_env import EnvConfig, Simulator, core, names
+
+    scene_cost = load_script("scene_cost")
+    shipped = Simulator(num_envs=1)
+    with scene_cost.scene_variant("plain", 1):
+        variant = Simulator(num_envs=1)
+    try:
+        assert (shipped.substeps, variant.substeps) == (40, 1)
+        floor = variant.model.material("floor").id
+        assert (shipped.model.mat_texid[floor] >= 0).any() and (variant.model.mat_texid[floor] == -1).all()
+        shipped.reset(seeds=[3])
+        variant.reset(seeds=[3])
+        checker, plain = shipped.render()[0], variant.render()[0]
+        bottom = slice(-10, None)  # floor only, in front of the robot
+        assert plain[bottom].std(axis=(0, 1)).max() < checker[bottom].std(axis=(0, 1)).max()
+    finally:
+        shipped.close()
+        variant.close()
+    model = core.load_model(EnvConfig())  # the library is itself again
+    assert model.opt.timestep == names.PHYSICS_TIMESTEP and (model.mat_texid[floor] >= 0).any()
+    assert core.physics_steps(5.0) == 40
+
+    turn, forward = scene_cost.first_moves()  # the shipped robot: about 17.5 degrees and 0.11 m from rest
+    assert 10 < turn < 25 and 0.05 < forward < 0.2
+    with scene_cost.scene_variant(timestep=0.01):
+        slow_turn, _ = scene_cost.first_moves()
+    assert slow_turn < turn / 2  # 10-ms steps: the turn from rest falls short (about 4.6 degrees)
+
+    monkeypatch.setattr(scene_cost, "STEPS", (40, 1))
+    monkeypatch.setattr(scene_cost, "FLOORS", ("plain",))
+    figures = scene_cost.measure_round(seconds=0.1, warmup=0.0, seed=0, train_seconds=0)
+    assert set(figures) == {("plain", 40), ("plain", 1)}
+    assert all(f.keys() == {"aec", "core_n64"} and min(f.values()) > 0 for f in figures.values())
