@@ -11,6 +11,7 @@ The CLI flags of ``activeperc-train`` are generated from these fields (and from
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import math
 import re
@@ -306,13 +307,17 @@ def save_yaml(config: TrainConfig, path: str | Path) -> None:
 
 
 def whole_number(text: str) -> int:
-    """An int from ``text``, also in exponent notation when its value is whole (``2e6``); else ``ValueError``."""
+    """The argparse type of the int flags: an int from ``text``, also in exponent notation when its value is whole
+    (``2e6``); else ``argparse.ArgumentTypeError`` saying so, which argparse prints after the flag's name."""
     try:
         return int(text)
     except ValueError:
-        value = float(text)  # ValueError when it is no number at all
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
         if not (math.isfinite(value) and value.is_integer()):
-            raise ValueError(f"{text!r} is not a whole number") from None
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
         return int(value)
 
 

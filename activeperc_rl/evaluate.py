@@ -24,7 +24,7 @@ from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
-from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
+from activeperc_rl.config import DEVICES, TrainConfig, resolve_device, whole_number
 from activeperc_rl.envs import LOOKER, MOVER, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
 from activeperc_rl.signals import stop_raises_interrupt
@@ -164,9 +164,12 @@ def main(argv: list[str] | None = None) -> int:
         description="Evaluate a run (or a random policy in the run's config) on held-out episodes.",
     )
     parser.add_argument("run", help="a run directory (holding checkpoint.pt) or a checkpoint file")
-    parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
+    parser.add_argument("--episodes", type=whole_number, default=100, help="number of episodes (default 100)")
     parser.add_argument(
-        "--seed", type=int, default=0, help="seed of the held-out layouts and of the policies' sampling (default 0)"
+        "--seed",
+        type=whole_number,
+        default=0,
+        help="seed of the held-out layouts and of the policies' sampling (default 0)",
     )
     parser.add_argument("--random", action="store_true", help="evaluate uniformly random mover and looker instead")
     parser.add_argument(
@@ -205,4 +208,3 @@ def main(argv: list[str] | None = None) -> int:
             f"over {result['episodes']} held-out episodes (seed {args.seed})"
         )
     return 0
-

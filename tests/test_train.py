@@ -350,6 +350,11 @@ def test_bad_flags_are_named(tmp_path, capsys):
             main(argv)
         err = capsys.readouterr().err
         assert stop.value.code == 2 and "'dqn'" in err and err.count("\n") == 1, err  # one line, no usage block
+    for main, argv in ((cli.main, ["--frames", "1.5"]), (evaluate.main, [str(tmp_path), "--seed", "1.5"])):
+        with pytest.raises(SystemExit):
+            main(argv)
+        flag = argv[-2]
+        assert f"argument {flag}: '1.5' is not a whole number" in capsys.readouterr().err  # not a function's name
     assert cli.main([*TINY, "--out", str(tmp_path / "x"), "--epsilon", "1.5"]) == 2
     assert "epsilon" in capsys.readouterr().err
     assert cli.main(["--resume"]) == 2
