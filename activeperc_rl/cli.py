@@ -13,6 +13,7 @@ import argparse
 import dataclasses
 import sys
 import time
+from contextlib import suppress
 from pathlib import Path
 
 from activeperc_env import EnvConfig
@@ -129,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     from activeperc_rl.train import TrainingError, train
 
     args = build_parser().parse_args(argv)
-    out, named = args.out, None  # named: the default directory this command made, removed if the run never starts
+    # named: the default directory this command made, removed if the run never starts (with runs/ if it made that)
+    out, named, made_parent = args.out, None, False
     try:
         # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
         with stop_raises_interrupt():
@@ -138,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(warning, file=sys.stderr)
             if out is None:
                 stem = Path("runs") / f"{config.method}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
+                made_parent = not stem.parent.exists()
                 out = named = str(new_run_dir(stem))
             train(config, out, resume=args.resume, progress=not args.no_progress)
             named = None
@@ -155,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if named is not None:
             remove_if_unused(named)
+            if made_parent:
+                with suppress(OSError):  # not empty: another run is in it, or this one's directory stayed
+                    Path(named).parent.rmdir()
     return 0
 
 

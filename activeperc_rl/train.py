@@ -27,6 +27,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from activeperc_env.config import is_int
 from activeperc_rl.allocator import keep_freed_memory
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import (
@@ -155,6 +156,8 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         # nothing is written before the run has started; from then on the directory holds a checkpoint
         if resumed:
             save_yaml(config, out / CONFIG)
+            if frames < config.frames:
+                _retire_eval(out)
         else:
             try:  # the first checkpoint, then config.yaml: a run directory never holds a config without one
                 checkpoint()
@@ -203,6 +206,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                     writer.add_scalar(f"train/{key}", row[key], frames)
                 for key, value in step.losses.items():
                     writer.add_scalar(key, value, frames)
+                bar.total = max(bar.total, frames)  # the last iteration may pass the budget: the bar ends full
                 bar.update(step.frames)
                 bar.set_postfix(fps=f"{row['fps']:.0f}", success=f"{success:.2f}", ret=f"{mean_return:.3f}")
                 if time.monotonic() - last_checkpoint >= config.checkpoint_every:
@@ -269,6 +273,22 @@ def _interruptible():
 
     with on_stop_signals(stop):
         yield lambda: flag["set"]
+
+
+def _retire_eval(out: Path) -> None:
+    """Move the run's ``eval.json`` to ``eval_FRAMES.json`` (FRAMES: the frames it evaluated) before the run trains
+    further, so that ``eval.json`` never describes another checkpoint than the one beside it; says so on stderr."""
+    path = out / EVAL
+    try:
+        evaluated = json.loads(path.read_text()).get("frames")
+    except FileNotFoundError:
+        return
+    except (ValueError, AttributeError):  # damaged, or not ours: still not of the checkpoint to come
+        evaluated = None
+    if not is_int(evaluated):
+        evaluated = "earlier"
+    kept = path.replace(out / f"eval_{evaluated}.json")
+    print(f"activeperc-train: {EVAL} is of the run at {evaluated} frames; kept as {kept.name}", file=sys.stderr)
 
 
 def _write_json(path: Path, values: dict) -> None:

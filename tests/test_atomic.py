@@ -1,10 +1,11 @@
-"""atomic_path: a file is replaced whole or not at all."""
+"""atomic_path: a file is replaced whole or not at all; check_writable: whether it could be written."""
 
 import errno
+import os
 
 import pytest
 
-from activeperc_rl.atomic import atomic_path
+from activeperc_rl.atomic import atomic_path, check_writable
 
 
 def test_atomic_path_replaces_the_file_and_keeps_the_suffix(tmp_path):
@@ -49,3 +50,12 @@ def test_atomic_path_errors_name_the_file_asked_for(tmp_path):
     with pytest.raises(OSError) as error, atomic_path("/proc/video.mp4"):  # no file can be made there
         pass
     assert error.value.filename == "/proc/video.mp4"
+
+
+def test_check_writable_tries_the_folder_rather_than_trusting_its_permissions(tmp_path, monkeypatch):
+    """Permissions say yes to root in /proc, where no file can be made: the check makes (and removes) one."""
+    check_writable(tmp_path / "new" / "video.mp4")  # the folders are made when written
+    assert list(tmp_path.iterdir()) == []  # the probe is gone
+    monkeypatch.setattr(os, "access", lambda *args: True)  # as for root
+    with pytest.raises(ValueError, match=r"cannot write '/proc/v\.mp4': .* in '/proc'"):
+        check_writable("/proc/v.mp4")

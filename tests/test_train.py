@@ -281,12 +281,16 @@ def test_an_unwritable_run_directory_is_one_line(tmp_path, capsys):
 
 def test_a_run_that_fails_to_start_leaves_no_directory(tmp_path, capsys, monkeypatch):
     """A run refused after its directory was made (here: an image too small for the encoder) removes it again,
-    the default runs/METHOD-seedS-TIME too; a directory that existed before is left alone."""
+    the default runs/METHOD-seedS-TIME too (and runs/ if the run made it); a directory that existed before is left
+    alone."""
     monkeypatch.chdir(tmp_path)
     small = ["--width", "8", "--height", "8", "--channels", "8", "8", "8", "--frames", "64"]
     assert cli.main([*TINY, *small]) == 2
     assert "activeperc-train: error:" in capsys.readouterr().err
-    assert list((tmp_path / "runs").iterdir()) == []
+    assert not (tmp_path / "runs").exists()  # it made runs/ too
+    (tmp_path / "runs").mkdir()
+    assert cli.main([*TINY, *small]) == 2
+    assert list((tmp_path / "runs").iterdir()) == []  # a runs/ that was there stays
     assert cli.main([*TINY, *small, "--out", "new/run"]) == 2
     assert not (tmp_path / "new" / "run").exists()
     (tmp_path / "mine").mkdir()
@@ -331,6 +335,17 @@ def test_resume_to_the_runs_own_target_after_it_overshot(tmp_path):
     assert cli.main([*TINY, "--out", str(out), "--resume", "--method", "fixed_forward", "--frames", "200"]) == 0
     assert load_checkpoint(out / "checkpoint.pt")["frames"] == trained
     assert json.loads((out / "eval.json").read_text())["learned"]["episodes"] == 4
+
+
+def test_a_resume_that_trains_further_keeps_the_old_eval_under_its_frames(tmp_path, capsys):
+    """eval.json describes the checkpoint beside it: one of an earlier checkpoint is kept as eval_FRAMES.json."""
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64")
+    old = (out / "eval.json").read_text()
+    trained = json.loads(old)["frames"]
+    capsys.readouterr()
+    assert cli.main(["--out", str(out), "--resume", "--frames", "128", "--eval-episodes", "0", "--no-progress"]) == 0
+    assert not (out / "eval.json").exists() and (out / f"eval_{trained}.json").read_text() == old
+    assert f"eval.json is of the run at {trained} frames; kept as eval_{trained}.json" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
