@@ -77,3 +77,28 @@ def test_training_without_its_extra_names_what_is_missing_and_the_pinned_install
     message = out.stderr.strip().splitlines()[-1]
     assert "needs the 'train' extra, and ['torch', 'torchrl'] are not installed" in message, message
     assert "pip install torch==2.13.0 -e '.[train]'" in message, message
+
+
+def test_the_oldest_python_we_allow_is_one_our_dependencies_allow():
+    """pyproject.toml's requires-python starts no lower than any installed dependency's own: pip would otherwise
+    offer the project to a Python on which a dependency has no release (mujoco 4.0.0 needs 3.11)."""
+    import importlib.metadata
+    import tomllib
+    from pathlib import Path
+
+    from packaging.requirements import Requirement
+    from packaging.specifiers import SpecifierSet
+
+    project = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml").read_text())["project"]
+    ours = SpecifierSet(project["requires-python"])
+    oldest = next(f"3.{minor}" for minor in range(0, 100) if f"3.{minor}" in ours)
+    requirements = project["dependencies"] + project["optional-dependencies"]["train"]
+    refusing = []
+    for name in sorted({Requirement(r).name for r in requirements}):
+        try:
+            theirs = SpecifierSet(importlib.metadata.metadata(name)["Requires-Python"] or "")
+        except importlib.metadata.PackageNotFoundError:  # the training extra is not installed here
+            continue
+        if oldest not in theirs:
+            refusing.append(f"{name} ({theirs})")
+    assert not refusing, f"requires-python {ours} admits Python {oldest}, which these refuse: {refusing}"
