@@ -11,8 +11,8 @@ _missing = [name for name in ("torch", "tensordict", "torchrl", "yaml") if impor
 if _missing:  # the environment alone was installed
     raise ImportError(
         f"activeperc_rl (training, activeperc-train, activeperc-eval) needs the 'train' extra, and {_missing} are "
-        "not installed: in the activeperc checkout run pip install torch==2.13.0 -e '.[train]' (torch pinned: an "
-        "unpinned torch pulls a CUDA build of several GB)"
+        "not installed: run pip install torch==2.13.0 'activeperc[train]' (in a checkout of activeperc: "
+        "pip install torch==2.13.0 -e '.[train]'; torch pinned: an unpinned torch pulls a CUDA build of several GB)"
     )
 
 from activeperc_rl.config import TrainConfig  # noqa: E402 (after the check above)

@@ -76,7 +76,8 @@ def test_training_without_its_extra_names_what_is_missing_and_the_pinned_install
     assert out.returncode == 1
     message = out.stderr.strip().splitlines()[-1]
     assert "needs the 'train' extra, and ['torch', 'torchrl'] are not installed" in message, message
-    assert "pip install torch==2.13.0 -e '.[train]'" in message, message
+    assert "pip install torch==2.13.0 'activeperc[train]'" in message, message  # from a wheel or an index
+    assert "pip install torch==2.13.0 -e '.[train]'" in message, message  # in a checkout
 
 
 def test_the_oldest_python_we_allow_is_one_our_dependencies_allow():
