@@ -56,7 +56,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and pee
 
 import env_speed  # noqa: E402 (needs the path above)
 import peer  # noqa: E402
-from env_speed import at_least  # noqa: E402
+from env_speed import add_timing_flags, at_least  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path, check_writable  # noqa: E402
 
@@ -232,19 +232,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         metavar="N",
         help=f"numbers of rooms to time ({' '.join(map(str, DEFAULT_NUM_ENVS))})",
     )
-    parser.add_argument(
-        "--seconds", type=at_least(float, "seconds", 0, strict=True), default=5.0, help="timed seconds per N (5)"
-    )
-    parser.add_argument(
-        "--warmup", type=at_least(float, "warmup", 0), default=1.0, help="untimed seconds before each timing (1)"
-    )
-    parser.add_argument(
-        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
-    )
+    add_timing_flags(parser, seconds=5.0, warmup=1.0, per="N")
     parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
-    parser.add_argument(
-        "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of every N, MiniWorld around each (3)"
-    )
     parser.add_argument(
         "--memory-episodes",
         type=at_least(int, "memory_episodes", 0),

@@ -295,22 +295,34 @@ def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callabl
     return convert
 
 
+def add_timing_flags(parser: argparse.ArgumentParser, seconds: float, warmup: float, per: str) -> None:
+    """The flags every env benchmark takes, checked: ``--seconds`` timed per ``per`` (e.g. 'figure'), ``--rounds``
+    with MiniWorld timed around each, ``--warmup`` before each timing and ``--seed``; the given defaults."""
+    parser.add_argument(
+        "--seconds",
+        type=at_least(float, "seconds", 0, strict=True),
+        default=seconds,
+        help=f"timed seconds per {per} ({seconds:g})",
+    )
+    parser.add_argument(
+        "--rounds", type=at_least(int, "rounds", 1), default=3, help=f"rounds of every {per}, MiniWorld around each (3)"
+    )
+    parser.add_argument(
+        "--warmup",
+        type=at_least(float, "warmup", 0),
+        default=warmup,
+        help=f"untimed seconds before each timing ({warmup:g})",
+    )
+    parser.add_argument(
+        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
+    )
+
+
 def main() -> None:
     """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--seconds", type=at_least(float, "seconds", 0, strict=True), default=5.0, help="timed seconds per figure (5)"
-    )
-    parser.add_argument(
-        "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of our figures, MiniWorld around each (3)"
-    )
+    add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    parser.add_argument(
-        "--warmup", type=at_least(float, "warmup", 0), default=1.0, help="untimed seconds before each timing (1)"
-    )
-    parser.add_argument(
-        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the resets and the random actions (0)"
-    )
     args = parser.parse_args()
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)

@@ -124,23 +124,11 @@ def measure_round(seconds: float, warmup: float, seed: int, train_seconds: float
 
 def main() -> None:
     """Parse the flags, time the variants and MiniWorld in alternation, and print the report."""
-    at_least = env_speed.at_least
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--seconds", type=at_least(float, "seconds", 0, strict=True), default=3.0, help="timed seconds per figure (3)"
-    )
-    parser.add_argument(
-        "--rounds", type=at_least(int, "rounds", 1), default=3, help="rounds of ours, MiniWorld around each (3)"
-    )
-    parser.add_argument(
-        "--warmup", type=at_least(float, "warmup", 0), default=0.5, help="untimed seconds before each timing (0.5)"
-    )
-    parser.add_argument(
-        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the resets and the random actions (0)"
-    )
+    env_speed.add_timing_flags(parser, seconds=3.0, warmup=0.5, per="figure")
     parser.add_argument(
         "--train-seconds",
-        type=at_least(float, "train-seconds", 0),
+        type=env_speed.at_least(float, "train-seconds", 0),
         default=20.0,
         help="timed seconds of meta training per round, as shipped and with the cheapest cycle (20; 0: none)",
     )
