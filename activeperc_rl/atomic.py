@@ -55,7 +55,8 @@ def _naming(error: OSError, path: Path) -> OSError:
 def check_writable(path: str | Path) -> None:
     """``ValueError`` naming ``path`` when :func:`atomic_path` could not write it: a directory stands there, a file
     stands where one of its folders should be, or no file can be made in the nearest existing folder (tried with
-    a file made and removed again: permissions alone do not tell, e.g. for root in ``/sys``)."""
+    a file made and removed again, as :func:`atomic_path` makes its own: permissions alone do not tell, e.g. for
+    root in ``/sys``)."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{str(path)!r} is a directory, not a file")
@@ -63,8 +64,6 @@ def check_writable(path: str | Path) -> None:
         if folder.exists():
             if not folder.is_dir():
                 raise ValueError(f"cannot write {str(path)!r}: {str(folder)!r} is a file, not a directory")
-            if not os.access(folder, os.W_OK | os.X_OK):
-                raise ValueError(f"cannot write {str(path)!r}: {str(folder)!r} is not writable")
             try:
                 handle, probe = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.probe.")
             except OSError as error:
