@@ -31,15 +31,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import statistics
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # peer.py and env_speed.py sit next to this file
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE), str(HERE.parent / "experiments")]  # env_speed.py, peer.py; motion_profile.py
 
 import env_speed  # noqa: E402 (needs the path above)
+import motion_profile  # noqa: E402
 import peer  # noqa: E402
 import train_speed  # noqa: E402
 
@@ -91,19 +92,10 @@ def scene_variant(floor: str = "checker", steps: int | None = None, timestep: fl
 
 
 def first_moves() -> tuple[float, float]:
-    """Degrees turned by one 'turn left' and metres driven by one 'forward', each from rest in an empty room."""
-    from activeperc_env import EnvConfig, Simulator
-
-    sim = Simulator(EnvConfig(num_obstacles=0), num_envs=2)
-    try:
-        sim.reset(seeds=[0, 0])
-        before = [sim.pose(i) for i in range(2)]
-        sim.move([0, 2])
-        after = [sim.pose(i) for i in range(2)]
-    finally:
-        sim.close()
-    turn = after[0][1] - before[0][1]
-    return math.degrees(math.atan2(math.sin(turn), math.cos(turn))), float(math.dist(before[1][0], after[1][0]))
+    """Degrees turned by one 'turn left' and metres driven by one 'forward', each from rest in an empty room
+    (``experiments/motion_profile.py``'s first cycle)."""
+    (_, turn), (forward, _) = (motion_profile.profile(action, cycles=1, seed=0)[0] for action in (0, 2))
+    return turn, forward
 
 
 def measure_round(seconds: float, warmup: float, seed: int, train_seconds: float) -> dict[tuple[str, int], dict]:
