@@ -1,8 +1,9 @@
 """activeperc_env: the active-perception room of the meta-evaluation paper, for MARL and RL code.
 
 PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
-Gymnasium (registered on import): ``activeperc/Joint-v0``, ``activeperc/FixedForward-v0``; ``gymnasium.make_vec``
-steps all their rooms in one batched core (:class:`JointVectorEnv`, :class:`FixedForwardVectorEnv`).
+Gymnasium (registered on import): ``activeperc/Joint-v1``, ``activeperc/FixedForward-v1`` (room v1, the default) and
+their ``-v0`` (room v0); ``gymnasium.make_vec`` steps all their rooms in one batched core (:class:`JointVectorEnv`,
+:class:`FixedForwardVectorEnv`). Scripted movers and lookers: :mod:`activeperc_env.scripted`.
 Batched core for training: :class:`Simulator`. Options of every env: :class:`EnvConfig`. Agent names
 :data:`MOVER` and :data:`LOOKER`; action meanings :data:`MOVER_ACTIONS` and :data:`LOOKER_ACTIONS`.
 Single-agent classes behind the Gymnasium ids: :class:`JointEnv`, :class:`FixedForwardEnv`.
@@ -18,6 +19,7 @@ from activeperc_env.config import EnvConfig  # noqa: E402
 from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator  # noqa: E402
 from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
 from activeperc_env.gym_vector import FixedForwardVectorEnv, JointVectorEnv  # noqa: E402
+from activeperc_env.names import VERSIONS  # noqa: E402
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, env, parallel_env, raw_env  # noqa: E402
 
 __all__ = [
@@ -36,10 +38,12 @@ __all__ = [
     "raw_env",
 ]
 
-for _name, _entry in (("Joint-v0", "JointEnv"), ("FixedForward-v0", "FixedForwardEnv")):
-    if f"activeperc/{_name}" not in gymnasium.registry:
-        gymnasium.register(
-            f"activeperc/{_name}",
-            entry_point=f"activeperc_env.gym_envs:{_entry}",
-            vector_entry_point=f"activeperc_env.gym_vector:{_entry[:-3]}VectorEnv",
-        )
+for _name in ("Joint", "FixedForward"):
+    for _version in VERSIONS:
+        if f"activeperc/{_name}-v{_version}" not in gymnasium.registry:
+            gymnasium.register(
+                f"activeperc/{_name}-v{_version}",
+                entry_point=f"activeperc_env.gym_envs:{_name}Env",
+                vector_entry_point=f"activeperc_env.gym_vector:{_name}VectorEnv",
+                kwargs={"version": _version},
+            )

@@ -9,10 +9,12 @@ import math
 import numbers
 import textwrap
 from dataclasses import dataclass
+from typing import ClassVar
 
-from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP
+from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP, VERSIONS
 
 LOOKER_REWARDS = ("shared", "none")
+MAX_RANGE_RAYS = 64
 
 
 def field_docs(cls) -> dict[str, str]:
@@ -33,17 +35,39 @@ def with_field_docs(cls):
     docs = field_docs(cls)
     lines = [cls.__doc__.rstrip(), "", "Attributes:"]
     for f in dataclasses.fields(cls):
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        text = f"{f.name} ({f.type}, default {default!r}): {docs.get(f.name, '')}"
+        text = f"{f.name} ({f.type}, default {shown_default(cls, f)}): {docs.get(f.name, '')}"
         lines += textwrap.wrap(text, 100, initial_indent="    ", subsequent_indent="        ", break_on_hyphens=False)
     cls.__doc__ = "\n".join(lines) + "\n"
     return cls
 
 
+def shown_default(cls, f: dataclasses.Field, as_flag: bool = False) -> str:
+    """The default of field ``f`` of the config class ``cls`` as help texts show it (``repr``, or ``as_flag`` as one
+    would type it: ``16 32``, ``shared``); where it depends on the room's version (``cls.VERSION_DEFAULTS``), each
+    version's: ``30.0 (v1), 90.0 (v0)``."""
+    by_version = getattr(cls, "VERSION_DEFAULTS", {}).get(f.name)
+    if by_version is not None:
+        return ", ".join(f"{by_version[v]!r} (v{v})" for v in sorted(by_version, reverse=True))
+    default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+    if not as_flag:
+        return repr(default)
+    return " ".join(map(str, default)) if isinstance(default, tuple) else str(default)
+
+
 @with_field_docs
 @dataclass(frozen=True)
 class EnvConfig:
-    """Configuration of the active-perception room; invalid values raise ``ValueError``."""
+    """Configuration of the active-perception room; invalid values raise ``ValueError``.
+
+    A field that defaults to ``None`` takes its version's default (:attr:`VERSION_DEFAULTS`) when it is built.
+    """
+
+    VERSION_DEFAULTS: ClassVar[dict[str, dict[int, object]]] = {
+        "goal_distance": {0: 3.0, 1: 4.0},
+        "max_cycles": {0: 150, 1: 90},
+        "turn_speed": {0: 90.0, 1: 30.0},
+        "range_rays": {0: 0, 1: 13},
+    }
 
     fov: float = 60.0
     """Horizontal field of view of the robot's camera, in degrees (the paper uses 60 and 100)."""
@@ -53,29 +77,40 @@ class EnvConfig:
     """Height of the first-person image, in pixels."""
     num_obstacles: int = 3
     """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
-    goal_distance: float = 3.0
-    """Distance along the room (x) between the robot's start and the goal, in metres: each is drawn
-    within 0.3 m of -+goal_distance / 2 and their y anywhere but 0.5 m from the side walls (2.5 to 4.6; the room is 6 m
-    long). 4.6 puts them at its two ends; below 3, five or six occluders take many draws to fit (six at 2.5: 13 of
-    700 draws in tests/test_scene.py's test_the_hardest_config_never_runs_out_of_draws)."""
-    max_cycles: int = 150
+    goal_distance: float | None = None
+    """Distance along the room (x) between the robot's start and the goal, in metres (2.5 to 4.6; the room is 6 m
+    long): each is drawn within 0.3 m of -+goal_distance / 2, their y anywhere but 0.5 m from the side walls."""
+    max_cycles: int | None = None
     """Cycles (one move and one look each) before the episode is truncated."""
     pan_range: float = 120.0
     """The camera pans within [-pan_range, +pan_range] degrees of the robot's heading."""
     pan_step: float = 30.0
     """Degrees the camera turns for one 'pan left' or 'pan right' action."""
     control_hz: float = 5.0
-    """Mover decisions per simulated second; each move drives the wheels for 1/control_hz s, a whole number of the
-    scene's 5 ms physics steps (200 / k Hz for k = 1 to 400: 200, 100, 50, 40, 25, 20, 10, 5, 4, 2, ...)."""
+    """Mover decisions per simulated second; each move drives the base for 1/control_hz s, a whole number of the
+    version's physics steps (20 ms in v1: 50 / k Hz; 5 ms in v0: 200 / k Hz)."""
     forward_speed: float = 0.75
-    """Wheel rim speed of the 'forward' action, in m/s."""
-    turn_speed: float = 90.0
-    """Yaw rate the wheels are driven at by 'turn left' and 'turn right', in degrees per second."""
+    """Speed of the 'forward' action, in m/s (in v0 the wheels' rim speed)."""
+    turn_speed: float | None = None
+    """Yaw rate of 'turn left' and 'turn right', in degrees per second."""
+    range_rays: int | None = None
+    """Rays of the range sensor (the observation's 'range'; 0: none), spread evenly from -90 to +90 degrees of the
+    heading (one ray: straight ahead); they meet walls and occluders, never the goal."""
+    range_max: float = 2.0
+    """Distance at which the range sensor's rays stop, in metres: a ray that meets nothing reads range_max."""
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
+    version: int = 1
+    """The room's version: 1, or 0 for the paper-faithful room of the Figure 1 pilot (docs/env.md, Version History).
+    It picks the robot, its physics and the defaults shown per version."""
 
     def __post_init__(self) -> None:
+        if is_int(self.version) and self.version in VERSIONS:
+            for name, by_version in self.VERSION_DEFAULTS.items():
+                if getattr(self, name) is None:
+                    object.__setattr__(self, name, by_version[int(self.version)])
         normalize_numbers(self)
+        timestep = PHYSICS_TIMESTEP.get(self.version, PHYSICS_TIMESTEP[VERSIONS[-1]])
         checks = {
             "fov": is_number(self.fov) and 0.0 < self.fov < 180.0,
             "width": is_int(self.width) and 8 <= self.width <= 1024,
@@ -86,11 +121,14 @@ class EnvConfig:
             "pan_range": is_number(self.pan_range) and 0.0 <= self.pan_range <= 180.0,
             "pan_step": is_number(self.pan_step) and 0.0 < self.pan_step <= 180.0,
             "control_hz": is_number(self.control_hz)
-            and 0.5 <= self.control_hz <= 200.0
-            and _whole_steps(self.control_hz),
+            and 0.5 <= self.control_hz <= 1 / timestep
+            and _whole_steps(self.control_hz, timestep),
             "forward_speed": is_number(self.forward_speed) and 0.0 < self.forward_speed <= 3.0,
             "turn_speed": is_number(self.turn_speed) and 0.0 < self.turn_speed <= 720.0,
+            "range_rays": is_int(self.range_rays) and 0 <= self.range_rays <= MAX_RANGE_RAYS,
+            "range_max": is_number(self.range_max) and 0.2 <= self.range_max <= 10.0,
             "looker_reward": isinstance(self.looker_reward, str) and self.looker_reward in LOOKER_REWARDS,
+            "version": is_int(self.version) and self.version in VERSIONS,
         }
         allowed = {
             "fov": "a number of degrees in (0, 180)",
@@ -101,17 +139,18 @@ class EnvConfig:
             "max_cycles": "an int >= 1",
             "pan_range": "degrees in [0, 180]",
             "pan_step": "degrees in (0, 180]",
-            "control_hz": f"a rate in [0.5, 200] Hz whose period is a whole number of {PHYSICS_TIMESTEP * 1000:g} ms "
-            "physics steps (200 / k Hz, e.g. 200, 100, 50, 40, 25, 20, 10, 5, 4, 2)",
+            "control_hz": f"a rate in [0.5, {1 / timestep:g}] Hz whose period is a whole number of the v{self.version} "
+            f"room's {timestep * 1000:g} ms physics steps ({1 / timestep:g} / k Hz, e.g. {_rates(timestep)})",
             "forward_speed": "m/s in (0, 3]",
             "turn_speed": "degrees per second in (0, 720]",
+            "range_rays": f"an int in [0, {MAX_RANGE_RAYS}]",
+            "range_max": "metres in [0.2, 10]",
             "looker_reward": f"one of {LOOKER_REWARDS}",
+            "version": f"one of {VERSIONS}",
         }
         for field, ok in checks.items():
             if not ok:
-                raise ValueError(
-                    f"EnvConfig.{field}={getattr(self, field)!r} is invalid: expected {allowed[field]}"
-                )
+                raise ValueError(f"EnvConfig.{field}={getattr(self, field)!r} is invalid: expected {allowed[field]}")
 
     @classmethod
     def from_kwargs(cls, hint: str = "", /, **kwargs) -> EnvConfig:
@@ -122,9 +161,7 @@ class EnvConfig:
         if unknown:
             names = ", ".join(repr(name) for name in unknown)
             what = "arguments {}: not env options" if len(unknown) > 1 else "argument {}: not an env option"
-            raise UnknownOptionError(
-                f"unexpected keyword {what.format(names)}{hint}; known options: {sorted(known)}"
-            )
+            raise UnknownOptionError(f"unexpected keyword {what.format(names)}{hint}; known options: {sorted(known)}")
         return cls(**kwargs)
 
     @property
@@ -140,14 +177,24 @@ class UnknownOptionError(TypeError, ValueError):
     any other bad option."""
 
 
-def physics_steps(control_hz: float) -> int:
-    """MuJoCo steps in one control period of ``control_hz`` (the nearest whole number)."""
-    return max(1, round(1.0 / (control_hz * PHYSICS_TIMESTEP)))
+def physics_steps(config: EnvConfig) -> int:
+    """MuJoCo steps in one control period of ``config`` (the nearest whole number)."""
+    return _steps(config.control_hz, PHYSICS_TIMESTEP[config.version])
 
 
-def _whole_steps(control_hz: float) -> bool:
-    """Whether one control period of ``control_hz`` is a whole number of physics steps (to 0.1 % of a step)."""
-    return abs(1.0 / (control_hz * PHYSICS_TIMESTEP) - physics_steps(control_hz)) < 1e-3
+def _steps(control_hz: float, timestep: float) -> int:
+    return max(1, round(1.0 / (control_hz * timestep)))
+
+
+def _whole_steps(control_hz: float, timestep: float) -> bool:
+    """Whether one control period of ``control_hz`` is a whole number of ``timestep`` physics steps (to 0.1 % of a
+    step)."""
+    return abs(1.0 / (control_hz * timestep) - _steps(control_hz, timestep)) < 1e-3
+
+
+def _rates(timestep: float) -> str:
+    """Some control rates a physics step of ``timestep`` seconds admits, as text: '50, 25, 12.5, 10, 5, ...'."""
+    return ", ".join(f"{1 / (k * timestep):g}" for k in (1, 2, 4, 5, 10, 20, 25, 50))
 
 
 def is_int(value) -> bool:
@@ -166,7 +213,8 @@ def normalize_numbers(config) -> None:
     for the config's checks to reject."""
     for f in dataclasses.fields(config):
         value = getattr(config, f.name)
-        if f.type == "int" and is_int(value):
+        kind = f.type.removesuffix(" | None")
+        if kind == "int" and is_int(value):
             object.__setattr__(config, f.name, int(value))
-        elif f.type == "float" and is_number(value):
+        elif kind == "float" and is_number(value):
             object.__setattr__(config, f.name, float(value))

@@ -21,10 +21,11 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
-from activeperc_env import names
+from activeperc_env import names, sensors
 from activeperc_env.config import EnvConfig, is_int, physics_steps
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
+from activeperc_env.robot import make_base
 
 MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
@@ -51,13 +52,13 @@ class MoveResult:
 
 
 def load_model(config: EnvConfig) -> mujoco.MjModel:
-    """Compile the scene, set its camera to the configured field of view and hide the occluders left parked.
+    """Compile the version's scene, set its camera to the configured field of view and hide the occluders left parked.
 
     Occluders beyond ``num_obstacles`` stand far outside the room, beyond every camera's far plane, so no view
     shows them; taking them out of the renderer's scene (a geom group no view draws) leaves every pixel as it
     was and saves their draw calls.
     """
-    model = mujoco.MjModel.from_xml_path(str(names.SCENE_XML))
+    model = mujoco.MjModel.from_xml_path(str(names.SCENE_XML[config.version]))
     eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
     model.cam_fovy[eye] = config.fovy
     for body in names.OCCLUDER_BODIES[config.num_obstacles :]:
@@ -87,7 +88,7 @@ class Simulator:
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs = int(num_envs)
         self.model = load_model(self.config)
-        self.substeps = physics_steps(self.config.control_hz)
+        self.substeps = physics_steps(self.config)
         nthread = min(nthread or usable_cpus(), num_envs)
         self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
         self._qpos = self._batch.bind("qpos")
@@ -95,6 +96,11 @@ class Simulator:
         self._ctrl = self._batch.bind("ctrl")
         self._mocap_pos = self._batch.bind("mocap_pos")
         self._ids = _Ids(self.model)
+        self._base = make_base(self.model, self.config)
+        self._ray_angles = sensors.ray_angles(self.config.range_rays)
+        # the latest range readings of every room, and which are still those of the base's pose (a look leaves them)
+        self._ranges = np.zeros((num_envs, self.config.range_rays), dtype=np.float32)
+        self._ranged = np.zeros(num_envs, dtype=bool)
         self._renderer: TiledRenderer | None = None
         self._views: np.ndarray | None = None  # the latest first-person view of every room
         # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
@@ -103,10 +109,6 @@ class Simulator:
         self.done = np.ones(num_envs, dtype=bool)
         self._all_started = False  # whether every room has had its first reset (see require_started)
         self._rngs = [np.random.default_rng() for _ in range(num_envs)]
-        wheel = self.config.forward_speed / names.WHEEL_RADIUS
-        turn = math.radians(self.config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
-        # wheel speed targets (left, right) in rad/s, one row per mover action
-        self._wheel_targets = np.array([[-turn, turn], [turn, -turn], [wheel, wheel]])
         self._pan_deltas = math.radians(self.config.pan_step) * np.array([1.0, 0.0, -1.0])
         self._pan_limit = math.radians(self.config.pan_range)
 
@@ -129,8 +131,9 @@ class Simulator:
         if missing:
             raise ValueError(f"a state without {missing} is not one of get_state()'s")
         ours = dataclasses.asdict(self.config)
-        if state["config"] != ours:
-            differ = sorted(k for k in ours.keys() | state["config"].keys() if state["config"].get(k) != ours.get(k))
+        theirs = {"version": 0} | state["config"]  # states saved before room v1 existed are of v0's rooms
+        if theirs != ours:
+            differ = sorted(k for k in ours.keys() | theirs.keys() if theirs.get(k) != ours.get(k))
             raise ValueError(f"a state of rooms of another config (differs in {differ}) does not fit this simulator")
         physics = np.asarray(state["physics"])
         per_room = {np.shape(state["cycle"]), np.shape(state["done"]), (len(state["rngs"]),)}
@@ -145,6 +148,7 @@ class Simulator:
         for rng, saved in zip(self._rngs, state["rngs"], strict=True):
             rng.bit_generator.state = saved
         self._tiles[:] = -1  # every view is drawn anew
+        self._ranged[:] = False
         self._all_started = bool(self.started().all())
 
     def __getstate__(self) -> dict:
@@ -154,7 +158,7 @@ class Simulator:
 
     def __setstate__(self, state: dict) -> None:
         """Build the simulator anew and restore the rooms' state."""
-        self.__init__(EnvConfig(**state["config"]), state["num_envs"], state["nthread"])
+        self.__init__(EnvConfig(**({"version": 0} | state["config"])), state["num_envs"], state["nthread"])
         self.set_state(state)
 
     # ----------------------------------------------------------------- episode control
@@ -176,9 +180,7 @@ class Simulator:
         for i in ids:
             layout = sample_layout(self._rngs[i], n_obs, self.config.goal_distance)
             qpos = self._qpos[i]
-            qpos[self._ids.root : self._ids.root + 3] = (*layout.start_xy, names.WHEEL_RADIUS)
-            half = layout.heading / 2
-            qpos[self._ids.root + 3 : self._ids.root + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
+            self._base.place(qpos, layout.start_xy, layout.heading)
             mocap = self._mocap_pos[i]
             mocap[self._ids.goal] = (*layout.goal_xy, names.GOAL_HALF)
             for k, m in enumerate(self._ids.occluders):
@@ -190,6 +192,7 @@ class Simulator:
         self.cycle[ids] = 0
         self.done[ids] = False
         self._tiles[ids] = -1
+        self._ranged[ids] = False
         self._all_started = self._all_started or bool(self.started().all())
 
     def started(self, ids=None) -> np.ndarray:
@@ -220,16 +223,17 @@ class Simulator:
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
         ctrl = self._ctrl[ids]
-        ctrl[:, self._ids.wheels] = self._wheel_targets[actions]
+        self._base.drive(ctrl, self._qpos[ids], actions)
         self._ctrl[ids] = ctrl
         self._batch.step(ids, nstep=self.substeps)
         self._tiles[ids] = -1
+        self._ranged[ids] = False
         # a stiff servo holds the pan joint while the base moves; its residual error (about
         # 1e-5 rad) would accumulate over an episode, so the joint returns to its command
         self._qpos[ids, self._ids.pan] = self._ctrl[ids, self._ids.pan_ctrl]
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self.cycle[ids] += 1
-        robot = self._qpos[ids, self._ids.root : self._ids.root + 2]
+        robot = self._base.xy(self._qpos[ids])
         goal = self._mocap_pos[ids][:, self._ids.goal, :2]
         success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
         frac = self.cycle[ids] / self.config.max_cycles
@@ -297,6 +301,28 @@ class Simulator:
         out[...] = self._views[ids]
         return out
 
+    def observe(self, ids=None) -> dict[str, np.ndarray]:
+        """The rooms' observations as every API gives them: ``image`` (:meth:`render`), ``pan`` (:meth:`pan`) and,
+        with a range sensor (``range_rays`` > 0), ``range`` (:meth:`ranges`)."""
+        observation = {"image": self.render(ids), "pan": self.pan(ids)}
+        if self.config.range_rays:
+            observation["range"] = self.ranges(ids)
+        return observation
+
+    def ranges(self, ids=None) -> np.ndarray:
+        """The range sensor's readings (:mod:`activeperc_env.sensors`): (n, range_rays) float32 metres, right first."""
+        ids = self._as_ids(ids)
+        self.require_started("ranges()", ids)
+        stale = ids[~self._ranged[ids]]
+        if stale.size:
+            qpos, mocap = self._qpos[stale], self._mocap_pos[stale]
+            occluders = mocap[:, list(self._ids.occluders[: self.config.num_obstacles]), :2]
+            self._ranges[stale] = sensors.cast(
+                self._base.xy(qpos), self._base.heading(qpos), occluders, self._ray_angles, self.config.range_max
+            )
+            self._ranged[stale] = True
+        return self._ranges[ids]  # a copy
+
     def pan(self, ids=None) -> np.ndarray:
         """The camera's pan angle relative to the robot's heading, radians: (n, 1) float32."""
         ids = self._as_ids(ids)
@@ -313,11 +339,10 @@ class Simulator:
         ids = self._as_ids(ids)
         self.require_started("state()", ids)
         qpos, mocap = self._qpos[ids], self._mocap_pos[ids]
-        r = self._ids.root
-        heading = 2 * np.arctan2(qpos[:, r + 6], qpos[:, r + 3])
+        heading = self._base.heading(qpos)
         occluders = mocap[:, list(self._ids.occluders[: self.config.num_obstacles]), :2].reshape(len(ids), -1)
         columns = [
-            qpos[:, r : r + 2],
+            self._base.xy(qpos),
             np.cos(heading)[:, None],
             np.sin(heading)[:, None],
             qpos[:, self._ids.pan : self._ids.pan + 1],
@@ -331,18 +356,15 @@ class Simulator:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
         index = self._as_index(index)
         self.require_started("render_map()", index)
-        return self.renderer.render_map(
-            self._qpos[index], self._mocap_pos[index], self.config.fov
-        )
+        return self.renderer.render_map(self._qpos[index], self._mocap_pos[index], self.config.fov)
 
     def pose(self, index: int = 0) -> tuple[np.ndarray, float, float]:
         """Robot position (x, y), heading and camera pan of room ``index``, for scripts and tests."""
         index = self._as_index(index)
         self.require_started("pose()", index)
-        q = self._qpos[index]
-        r = self._ids.root
-        heading = 2 * math.atan2(q[r + 6], q[r + 3])
-        return q[r : r + 2].copy(), math.atan2(math.sin(heading), math.cos(heading)), float(q[self._ids.pan])
+        q = self._qpos[index : index + 1]
+        heading = float(self._base.heading(q)[0])
+        return self._base.xy(q)[0].copy(), math.atan2(math.sin(heading), math.cos(heading)), float(q[0, self._ids.pan])
 
     def goal_xy(self, index: int = 0) -> np.ndarray:
         """Centre (x, y) of room ``index``'s goal box."""
@@ -367,9 +389,7 @@ class Simulator:
     def renderer(self) -> TiledRenderer:
         """The renderer, created on first use so that physics-only users need no GL."""
         if self._renderer is None:
-            self._renderer = TiledRenderer(
-                self.model, self.config.width, self.config.height, self.num_envs
-            )
+            self._renderer = TiledRenderer(self.model, self.config.width, self.config.height, self.num_envs)
         return self._renderer
 
     def close(self) -> None:
@@ -404,7 +424,8 @@ class Simulator:
 
 
 class _Ids:
-    """Addresses of the named elements in ``qpos``, ``qvel``, ``ctrl`` and ``mocap_pos``, looked up once."""
+    """Addresses of the camera's and the room's named elements in ``qpos``, ``qvel``, ``ctrl`` and ``mocap_pos``,
+    looked up once (the base's are its own: :mod:`activeperc_env.robot`)."""
 
     def __init__(self, model: mujoco.MjModel):
         def joint(name):
@@ -416,11 +437,9 @@ class _Ids:
         def actuator(name):
             return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
 
-        self.root = int(model.jnt_qposadr[joint(names.ROOT_JOINT)])
         self.pan = int(model.jnt_qposadr[joint(names.PAN_JOINT)])
         self.pan_dof = int(model.jnt_dofadr[joint(names.PAN_JOINT)])
         self.pan_ctrl = actuator(names.PAN_ACTUATOR)
-        self.wheels = [actuator(names.LEFT_WHEEL), actuator(names.RIGHT_WHEEL)]
         self.goal = int(mocap(names.GOAL_BODY))
         self.occluders = tuple(int(mocap(b)) for b in names.OCCLUDER_BODIES)
 
@@ -457,9 +476,7 @@ def check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: st
             f"{agent} actions {actions!r} invalid: expected {len(ids)} int(s) in Discrete({len(meanings)}) {meanings}"
         )
     if arr.size and (arr.min() < 0 or arr.max() >= len(meanings)):
-        raise ValueError(
-            f"{agent} actions {arr.tolist()} out of range of Discrete({len(meanings)}) {meanings}"
-        )
+        raise ValueError(f"{agent} actions {arr.tolist()} out of range of Discrete({len(meanings)}) {meanings}")
     return arr.astype(np.int64)
 
 

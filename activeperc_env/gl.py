@@ -30,6 +30,9 @@ MESA_DRIVER_HELP = (
     "'apt-get install libgl1-mesa-dri' on Debian/Ubuntu."
 )
 
+# whether choose_backend set LP_NUM_THREADS (Mesa's llvmpipe then draws in the calling thread), or found it set
+LLVMPIPE_THREADS_CHOSEN = False
+
 # MUJOCO_GL's values on Linux, as MuJoCo reads them (_backend); any other fails at ``import mujoco``
 RENDERING_OFF = ("disable", "disabled", "off", "false", "0")
 LINUX_BACKENDS = ("", "egl", "osmesa", "glfw", "glx", "enable", "enabled", "on", "true", "1", *RENDERING_OFF)
@@ -38,7 +41,13 @@ LINUX_BACKENDS = ("", "egl", "osmesa", "glfw", "glx", "enable", "enabled", "on",
 def choose_backend() -> None:
     """Set ``MUJOCO_GL=egl`` when it is unset and no display can be opened (none named, or a stale ``DISPLAY``
     as over ssh without X forwarding); fail clearly when the library of the headless backend set or chosen is
-    missing (``import mujoco`` would fail with an ``AttributeError`` of PyOpenGL's)."""
+    missing (``import mujoco`` would fail with an ``AttributeError`` of PyOpenGL's). Also set
+    ``LP_NUM_THREADS=0`` when it is unset: Mesa's software renderer (llvmpipe) then draws in the calling thread,
+    which renders our small views faster than its threads do (docs/performance.md); other drivers ignore it."""
+    global LLVMPIPE_THREADS_CHOSEN
+    if "LP_NUM_THREADS" not in os.environ:
+        os.environ["LP_NUM_THREADS"] = "0"
+        LLVMPIPE_THREADS_CHOSEN = True
     if sys.platform in ("darwin", "win32"):
         return
     backend = _backend()

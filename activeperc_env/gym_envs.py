@@ -59,7 +59,7 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
 
 
 class JointEnv(_SingleAgentEnv):
-    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c`` (``activeperc/Joint-v0``).
+    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c`` (``activeperc/Joint-v1``).
 
     Description:
         The paper's Joint baseline (and the Curriculum baseline's agent): the room of
@@ -72,7 +72,8 @@ class JointEnv(_SingleAgentEnv):
 
     Observation Space:
         ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the view after the
-        look and the camera's pan (radians, relative to the heading).
+        look and the camera's pan (radians, relative to the heading); in v1 also ``range`` (as in
+        :class:`~activeperc_env.pettingzoo_env.raw_env`).
 
     Rewards:
         ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which the robot reaches the goal, else 0.
@@ -87,7 +88,9 @@ class JointEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
-        v0: first release.
+        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
+        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
+        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):
@@ -99,7 +102,7 @@ class JointEnv(_SingleAgentEnv):
 
 
 class FixedForwardEnv(_SingleAgentEnv):
-    """The mover alone, its camera fixed forward (``activeperc/FixedForward-v0``).
+    """The mover alone, its camera fixed forward (``activeperc/FixedForward-v1``).
 
     Description:
         The paper's Fixed_Forward baseline: the room of :class:`activeperc_env.pettingzoo_env.raw_env`
@@ -109,7 +112,7 @@ class FixedForwardEnv(_SingleAgentEnv):
         ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward.
 
     Observation Space:
-        ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``; ``pan`` is always 0.
+        As :class:`JointEnv`'s; ``pan`` is always 0.
 
     Rewards:
         ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which the robot reaches the goal, else 0.
@@ -124,7 +127,9 @@ class FixedForwardEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
-        v0: first release.
+        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
+        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
+        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):

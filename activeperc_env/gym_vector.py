@@ -1,6 +1,6 @@
 """Gymnasium vector envs over one batched ``Simulator``: what ``gymnasium.make_vec`` gives for our ids.
 
-``gymnasium.make_vec("activeperc/Joint-v0", num_envs=N)`` steps N rooms in one ``mujoco.batch.Batch`` and draws
+``gymnasium.make_vec("activeperc/Joint-v1", num_envs=N)`` steps N rooms in one ``mujoco.batch.Batch`` and draws
 their views as tiles of one offscreen buffer, instead of N single-room envs (N GL contexts, one read-back per
 view) in Gymnasium's ``SyncVectorEnv``. Episodes are those of ``SyncVectorEnv`` over the single-room envs: the
 same seeds (``reset(seed=s)`` gives room ``i`` the seed ``s + i``), the same autoreset, rewards, ends and infos.
@@ -146,14 +146,14 @@ class _SingleAgentVectorEnv(VectorEnv):
         self.sim.close()
 
     def _observe(self) -> dict:
-        return {"image": self.sim.render(), "pan": self.sim.pan()}
+        return self.sim.observe()
 
     def _final(self, ended: np.ndarray) -> dict:
         """``SAME_STEP``'s ``final_obs`` and ``final_info`` of the rooms ``ended``, before they are reset."""
-        images, pans = self.sim.render()[ended], self.sim.pan(ended)  # every room in its own tile, as after
+        observation = self.sim.observe()  # every room drawn in its own tile, as after
         final_obs = np.full(self.num_envs, None, dtype=object)
-        for k, i in enumerate(ended):
-            final_obs[i] = {"image": images[k], "pan": pans[k]}
+        for i in ended:
+            final_obs[i] = {key: value[i] for key, value in observation.items()}
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[ended] = True
         cycles = np.where(mask, self.sim.cycle, 0)
@@ -222,7 +222,7 @@ class _SingleAgentVectorEnv(VectorEnv):
 
 
 class JointVectorEnv(_SingleAgentVectorEnv):
-    """N rooms of ``activeperc/Joint-v0``: actions ``3 * u_m + u_c``, one ``Discrete(9)`` per room."""
+    """N rooms of ``activeperc/Joint-v1``: actions ``3 * u_m + u_c``, one ``Discrete(9)`` per room."""
 
     def _agent_space(self) -> gym.spaces.Discrete:
         return gym.spaces.Discrete(JOINT_ACTIONS)
@@ -232,7 +232,7 @@ class JointVectorEnv(_SingleAgentVectorEnv):
 
 
 class FixedForwardVectorEnv(_SingleAgentVectorEnv):
-    """N rooms of ``activeperc/FixedForward-v0``: the mover's action per room, the camera held forward."""
+    """N rooms of ``activeperc/FixedForward-v1``: the mover's action per room, the camera held forward."""
 
     def _agent_space(self) -> gym.spaces.Discrete:
         return mover_space()

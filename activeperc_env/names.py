@@ -7,12 +7,17 @@ other half of the contract.
 from pathlib import Path
 
 ASSETS = Path(__file__).parent / "assets"
-SCENE_XML = ASSETS / "scene.xml"
+VERSIONS = (0, 1)  # the room's versions (EnvConfig.version)
+SCENE_XML = {0: ASSETS / "scene.xml", 1: ASSETS / "scene_v1.xml"}  # each version's scene
 
 BASE_BODY = "base"
+# v0's base: a free joint on two driven wheels
 ROOT_JOINT = "root"
 LEFT_WHEEL = "left_wheel"
 RIGHT_WHEEL = "right_wheel"
+# v1's base: slides along x and y and a yaw hinge, each driven by a velocity servo of the same name with "drive_"
+BASE_JOINTS = ("base_x", "base_y", "base_yaw")
+BASE_DRIVES = ("drive_x", "drive_y", "drive_yaw")
 PAN_JOINT = "pan"
 PAN_ACTUATOR = "pan"
 EYE_CAMERA = "eye"
@@ -26,7 +31,7 @@ ROBOT_GROUP = 2
 HIDDEN_GROUP = 5
 
 # values that must agree with the XML
-PHYSICS_TIMESTEP = 0.005  # seconds of one MuJoCo step (<option timestep>)
+PHYSICS_TIMESTEP = {0: 0.005, 1: 0.02}  # seconds of one MuJoCo step (<option timestep>), by version
 WHEEL_RADIUS = 0.05
 WHEEL_TRACK = 0.26  # distance between the wheels' contact points
 ROBOT_RADIUS = 0.18  # a circle around the chassis, for layout and success checks

@@ -27,12 +27,13 @@ class _Adapter(OneRoomRendering):
 
     # not "is_parallelizable": the AEC env's looker observes s_bar (after the move, before its look), so PettingZoo's
     # aec_to_parallel would give a game where the looker acts on another view than the mover; use parallel_env
-    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v0"}
+    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v1"}  # each env: its own room's version
 
     def _setup(self, render_mode: str | None, config: dict) -> None:
         self._setup_rendering(render_mode)
         self.config = EnvConfig.from_kwargs(**config)
-        self.metadata = {**self.metadata, "render_fps": self.config.control_hz}
+        name = f"activeperc_v{self.config.version}"
+        self.metadata = {**self.metadata, "name": name, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
         self.possible_agents = [MOVER, LOOKER]
         obs_space = observation_space(self.config)
@@ -87,7 +88,9 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
     Observation Space:
         ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the
         first-person camera image and the camera's pan angle (radians, relative to the
-        heading). The looker observes the state after the move, the mover after the look.
+        heading); in v1 also ``range=Box(0, range_max, (range_rays,), float32)``, the distances along
+        the range sensor's rays (right to left) to the nearest wall or occluder (never the goal).
+        The looker observes the state after the move, the mover after the look.
 
     Rewards:
         The mover gets ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which it reaches the
@@ -106,7 +109,9 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
-        v0: first release.
+        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
+        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
+        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):

@@ -13,14 +13,16 @@ from activeperc_env.names import ROOM_HALF_X, ROOM_HALF_Y
 
 
 def observation_space(config: EnvConfig) -> spaces.Dict:
-    """``Dict(image=Box(uint8, (H, W, 3)), pan=Box(float32, (1,)))``; pan in radians."""
+    """``Dict(image=Box(uint8, (H, W, 3)), pan=Box(float32, (1,)))``, pan in radians, and with a range sensor
+    (``range_rays`` > 0) ``range=Box(float32, (range_rays,))`` in metres, right to left."""
     limit = math.radians(config.pan_range)
-    return spaces.Dict(
-        {
-            "image": spaces.Box(0, 255, (config.height, config.width, 3), dtype=np.uint8),
-            "pan": spaces.Box(-limit, limit, (1,), dtype=np.float32),
-        }
-    )
+    keys = {
+        "image": spaces.Box(0, 255, (config.height, config.width, 3), dtype=np.uint8),
+        "pan": spaces.Box(-limit, limit, (1,), dtype=np.float32),
+    }
+    if config.range_rays:
+        keys["range"] = spaces.Box(0.0, config.range_max, (config.range_rays,), dtype=np.float32)
+    return spaces.Dict(keys)
 
 
 def state_space(config: EnvConfig) -> spaces.Box:

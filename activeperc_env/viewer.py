@@ -26,8 +26,9 @@ class OneRoomRendering:
         self._viewer = HumanViewer() if render_mode == "human" else None
 
     def _observe(self) -> dict:
-        """Room 0's observation as it is now: its first-person view and camera pan."""
-        return {"image": self.sim.render()[0], "pan": self.sim.pan()[0]}
+        """Room 0's observation as it is now (:meth:`Simulator.observe`): its first-person view, camera pan and
+        range readings."""
+        return {key: value[0] for key, value in self.sim.observe().items()}
 
     def render(self):
         """``rgb_array``: the bird's-eye map (240x320x3 uint8); ``human``: MuJoCo's viewer (``None``)."""
@@ -85,4 +86,3 @@ class HumanViewer:
         if self._handle is not None:
             self._handle.close()
             self._handle = None
-

@@ -45,7 +45,7 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     if not isinstance(state, dict) or "config" not in state or "method" not in state:
         raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
     if config is not None:
-        saved = TrainConfig.from_dict(state["config"])
+        saved = TrainConfig.from_saved(state["config"])
         differ = config_differences(saved, config)
         if differ:
             raise ValueError(f"checkpoint {str(path)!r} does not match the config: {'; '.join(differ)}")

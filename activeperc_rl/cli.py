@@ -17,8 +17,9 @@ from contextlib import suppress
 from pathlib import Path
 
 from activeperc_env import EnvConfig
-from activeperc_env.arguments import ArgumentParser
-from activeperc_env.config import LOOKER_REWARDS, field_docs
+from activeperc_env.arguments import ArgumentParser, add_config_flags
+from activeperc_env.config import LOOKER_REWARDS
+from activeperc_env.names import VERSIONS
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import (
     DEVICES,
@@ -28,7 +29,6 @@ from activeperc_rl.config import (
     MOVER_ROLLOUTS,
     TrainConfig,
     load_yaml,
-    whole_number,
 )
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt
@@ -40,31 +40,9 @@ CHOICES = {
     "mover_rollouts": MOVER_ROLLOUTS,
     "e1_looks": E1_LOOKS,
     "looker_reward": LOOKER_REWARDS,
+    "version": VERSIONS,
 }
 RUN_OPTIONS = ("out", "resume", "config", "no_progress")  # the flags that are not config fields
-
-
-def _add_fields(group, cls, skip=()) -> None:
-    docs = field_docs(cls)
-    for f in dataclasses.fields(cls):
-        if f.name in skip:
-            continue
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        flag = "--" + f.name.replace("_", "-")
-        shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
-        help_text = f"{docs.get(f.name, '')} (default: {shown})".replace("%", "%%")
-        kwargs = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_text}
-        if isinstance(default, bool):
-            group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
-        elif isinstance(default, tuple):
-            group.add_argument(flag, type=_parser_type(default[0]), nargs="+", metavar="N", **kwargs)
-        else:
-            group.add_argument(flag, type=_parser_type(default), choices=CHOICES.get(f.name), **kwargs)
-
-
-def _parser_type(default):
-    """How a flag's text becomes the field's type: ints also from whole numbers in exponent notation (2e6)."""
-    return whole_number if isinstance(default, int) else type(default)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -79,8 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", action="store_true", help="continue the run in --out up to --frames")
     run.add_argument("--config", metavar="PRESET.yaml", help="YAML preset of options (flags override it)")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
-    _add_fields(parser.add_argument_group("training"), TrainConfig, skip=("env",))
-    _add_fields(parser.add_argument_group("environment"), EnvConfig)
+    add_config_flags(parser.add_argument_group("training"), TrainConfig, CHOICES, skip=("env",))
+    add_config_flags(parser.add_argument_group("environment"), EnvConfig, CHOICES)
     return parser
 
 

@@ -11,7 +11,6 @@ The CLI flags of ``activeperc-train`` are generated from these fields (and from
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import re
@@ -226,6 +225,15 @@ class TrainConfig:
             raise ValueError(f"unknown training option(s) {unknown}{hint}; known options: {sorted(known)}")
         return cls(**values)
 
+    @classmethod
+    def from_saved(cls, values: dict) -> TrainConfig:
+        """The config of a run saved in ``config.yaml`` or a checkpoint: as :meth:`from_dict`, but a saved room
+        without ``version`` is v0 (runs saved before room v1 existed trained in v0)."""
+        env = values.get("env") if isinstance(values, dict) else None
+        if isinstance(env, dict) and "version" not in env:
+            values = values | {"env": env | {"version": 0}}
+        return cls.from_dict(values)
+
     def unused(self, names) -> list[str]:
         """Those of the option ``names`` that this config's method does not read (:data:`METHOD_OPTIONS`)."""
         return [name for name in names if self.method not in METHOD_OPTIONS.get(name, METHODS)]
@@ -304,21 +312,6 @@ def save_yaml(config: TrainConfig, path: str | Path) -> None:
     """Write ``config`` as YAML (written to a temporary file first, then renamed over ``path``)."""
     with atomic_path(path) as temporary:
         temporary.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
-
-
-def whole_number(text: str) -> int:
-    """The argparse type of the int flags: an int from ``text``, also in exponent notation when its value is whole
-    (``2e6``); else ``argparse.ArgumentTypeError`` saying so, which argparse prints after the flag's name."""
-    try:
-        return int(text)
-    except ValueError:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and value.is_integer()):
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-        return int(value)
 
 
 def _finite(value) -> bool:

@@ -26,6 +26,7 @@ Keys are grouped per agent; done flags are shared, at the root (shape ``(..., 1)
 
     ("mover", "observation", "image")  uint8 (H, W, 3)   s: the mover's view (after the look)
     ("mover", "observation", "pan")    float32 (1,)      camera pan, radians
+    ("mover", "observation", "range")  float32 (K,)      range sensor, metres (v1; absent where range_rays is 0)
     ("mover", "action")                int64 ()          Categorical(3): turn left/right, forward
     ("mover", "reward"), ("looker", "reward")  float32 (1,)
     "done", "terminated", "truncated"  bool (1,)
@@ -192,6 +193,10 @@ class ActivePerceptionEnv(EnvBase):
             shape=n,
             device=self.device,
         )
+        if cfg.range_rays:
+            self._obs_spec["range"] = Bounded(
+                0.0, cfg.range_max, (*n, cfg.range_rays), dtype=torch.float32, device=self.device
+            )
         reward = Unbounded((*n, 1), dtype=torch.float32, device=self.device)
         self.full_reward_spec = Composite(
             {MOVER: Composite(reward=reward, shape=n), LOOKER: Composite(reward=reward.clone(), shape=n)},
@@ -264,9 +269,7 @@ class ActivePerceptionEnv(EnvBase):
         self._update_specs()
 
     # ------------------------------------------------------------------ EnvBase API
-    def _reset(
-        self, tensordict: TensorDictBase | None = None, seed: int | None = None, **kwargs
-    ) -> TensorDictBase:
+    def _reset(self, tensordict: TensorDictBase | None = None, seed: int | None = None, **kwargs) -> TensorDictBase:
         unknown = sorted(set(kwargs) - {"set_state"})  # TorchRL's own keyword; our rooms have no state to set
         if unknown:
             raise TypeError(f"reset() got unknown keyword argument(s) {unknown}; it takes seed=")
@@ -277,8 +280,7 @@ class ActivePerceptionEnv(EnvBase):
             ids = np.arange(self.num_envs)
         else:
             ids = mask.reshape(self.num_envs).nonzero().squeeze(-1).cpu().numpy()
-        image = torch.zeros(self._obs_spec["image"].shape, dtype=torch.uint8)
-        pan = torch.zeros(self._obs_spec["pan"].shape, dtype=torch.float32)
+        observation = self._obs_spec.zero().cpu()
         if len(ids):
             parity = SPLITS.index(self.split)
             seeds = np.array([2 * self._seed_rngs[i].integers(2**62) + parity for i in ids], dtype=np.int64)
@@ -286,9 +288,8 @@ class ActivePerceptionEnv(EnvBase):
             self.episode_seeds[ids] = seeds
             self._terminated[ids] = self._truncated[ids] = False
             index = torch.from_numpy(ids)
-            image[index] = torch.from_numpy(self.sim.render(ids))
-            pan[index] = torch.from_numpy(self.sim.pan(ids))
-        observation = {"image": image, "pan": pan}
+            for key, value in self.sim.observe(ids).items():
+                observation[key][index] = torch.from_numpy(value)
         out = TensorDict({MOVER: {"observation": observation}}, batch_size=self.batch_size, device=self.device)
         if self._looker is not None:
             out.set(LOOKER, self._looker_spec.zero())
@@ -369,10 +370,9 @@ class ActivePerceptionEnv(EnvBase):
         super().close(raise_if_closed=raise_if_closed)
 
     def _observe(self) -> TensorDict:
-        """The current view of every room: ``{"image", "pan"}`` on ``device``."""
-        image = torch.from_numpy(self.sim.render())
-        pan = torch.from_numpy(self.sim.pan())
-        return TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size, device=self.device)
+        """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`) on ``device``."""
+        observation = {key: torch.from_numpy(value) for key, value in self.sim.observe().items()}
+        return TensorDict(observation, batch_size=self.batch_size, device=self.device)
 
 
 # TorchRL's metaclass shows the constructor as (*args, **kwargs) to help() and IDEs: give them its real arguments

@@ -18,13 +18,13 @@ import torch
 from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 from tqdm import tqdm
 
-from activeperc_env.arguments import ArgumentParser
+from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.config import is_int
 from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
-from activeperc_rl.config import DEVICES, TrainConfig, resolve_device, whole_number
+from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
 from activeperc_rl.envs import LOOKER, MOVER, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
 from activeperc_rl.signals import stop_raises_interrupt
@@ -133,7 +133,7 @@ def load_policy(path: str | Path, device="cpu"):
     if not path.exists():
         raise ValueError(f"{str(path)!r} does not exist: give a run directory or a checkpoint file")
     state = load_checkpoint(file)
-    config = TrainConfig.from_dict(state["config"])
+    config = TrainConfig.from_saved(state["config"])
     method = make_method(config, torch_device(device), start=False)
     restore_method(method, state, file)
     mover_policy, looker = method.policy()

@@ -24,7 +24,8 @@ NUM_ACTIONS = len(MOVER_ACTIONS)  # the looker has as many (LOOKER_ACTIONS)
 
 
 class Encoder(nn.Module):
-    """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan, then a linear layer.
+    """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan and the range readings scaled to
+    [0, 1] (where the room has a range sensor), then a linear layer.
 
     It reads the images as the env gives them, of shape ``(*batch, height, width, 3)`` with values 0 to 255
     (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the ``(3, H, W)`` images
@@ -34,13 +35,24 @@ class Encoder(nn.Module):
         height, width: the image size.
         channels: output channels of the conv layers (kernel 8 stride 4, then 4/2, then 3/1).
         hidden_size: width of the output features.
+        range_rays: readings of the range sensor it also reads (0: none).
+        range_max: the range sensor's longest reading, which it scales the readings by.
     """
 
     KERNELS = ((8, 4), (4, 2), (3, 1))
 
-    def __init__(self, height: int, width: int, channels: tuple[int, ...], hidden_size: int):
+    def __init__(
+        self,
+        height: int,
+        width: int,
+        channels: tuple[int, ...],
+        hidden_size: int,
+        range_rays: int = 0,
+        range_max: float = 1.0,
+    ):
         super().__init__()
         self.image_shape = (height, width, 3)
+        self.range_rays, self.range_max = range_rays, range_max
         layers, in_ch, h, w = [], 3, height, width
         for i, out_ch in enumerate(channels):
             kernel, stride = self.KERNELS[min(i, len(self.KERNELS) - 1)]
@@ -49,10 +61,11 @@ class Encoder(nn.Module):
             layers += [nn.Conv2d(in_ch, out_ch, kernel, stride), nn.ReLU()]
             in_ch, h, w = out_ch, (h - kernel) // stride + 1, (w - kernel) // stride + 1
         self.conv = nn.Sequential(*layers, nn.Flatten())
-        self.linear = nn.Sequential(nn.Linear(in_ch * h * w + 2, hidden_size), nn.ReLU())
+        self.linear = nn.Sequential(nn.Linear(in_ch * h * w + 2 + range_rays, hidden_size), nn.ReLU())
 
-    def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
-        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)`` and ``pan (*batch, 1)``."""
+    def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
+        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)``, ``pan (*batch, 1)`` and, with
+        a range sensor, ``ranges (*batch, range_rays)``."""
         if tuple(image.shape[-3:]) != self.image_shape:
             raise ValueError(
                 f"the encoder reads images of shape (*batch, {', '.join(map(str, self.image_shape))}) with values "
@@ -63,31 +76,34 @@ class Encoder(nn.Module):
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)
         pan = pan.reshape(-1, 1).to(x.dtype)
-        x = torch.cat([x, torch.sin(pan), torch.cos(pan)], dim=-1)
-        return self.linear(x).reshape(*batch, -1)
+        parts = [x, torch.sin(pan), torch.cos(pan)]
+        if self.range_rays:
+            parts.append(ranges.reshape(-1, self.range_rays).to(x.dtype) / self.range_max)
+        return self.linear(torch.cat(parts, dim=-1)).reshape(*batch, -1)
 
 
 class Head(nn.Module):
-    """An encoder followed by a linear layer: ``(image, pan) -> (*batch, out_features)``."""
+    """An encoder followed by a linear layer: ``(image, pan[, ranges]) -> (*batch, out_features)``."""
 
     def __init__(self, encoder: Encoder, hidden_size: int, out_features: int):
         super().__init__()
         self.encoder = encoder
         self.out = nn.Linear(hidden_size, out_features)
 
-    def forward(self, image: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
+    def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
         """Apply the encoder, then the output layer."""
-        return self.out(self.encoder(image, pan))
+        return self.out(self.encoder(image, pan, ranges))
 
 
 def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int) -> Encoder:
-    """An :class:`Encoder` sized for ``env``'s images."""
-    return Encoder(env.height, env.width, channels, hidden_size)
+    """An :class:`Encoder` sized for ``env``'s observation."""
+    return Encoder(env.height, env.width, channels, hidden_size, env.range_rays, env.range_max)
 
 
-def observation_keys(agent: str) -> list[tuple[str, ...]]:
-    """The input keys of ``agent``'s networks: its image and its pan."""
-    return [(agent, "observation", "image"), (agent, "observation", "pan")]
+def observation_keys(agent: str, encoder: Encoder) -> list[tuple[str, ...]]:
+    """The input keys of ``agent``'s networks on ``encoder``: its image, its pan and (with a range sensor) its range."""
+    keys = ["image", "pan"] + (["range"] if encoder.range_rays else [])
+    return [(agent, "observation", key) for key in keys]
 
 
 def make_actor(
@@ -95,7 +111,9 @@ def make_actor(
 ):
     """A categorical ``ProbabilisticActor`` for ``agent`` on the observation of ``reads`` (default: ``agent``)."""
     logits = TensorDictModule(
-        Head(encoder, hidden_size, num_actions), in_keys=observation_keys(reads or agent), out_keys=[(agent, "logits")]
+        Head(encoder, hidden_size, num_actions),
+        in_keys=observation_keys(reads or agent, encoder),
+        out_keys=[(agent, "logits")],
     )
     return ProbabilisticActor(
         logits,
@@ -125,11 +143,13 @@ def start_holding(actor, hold_prob: float) -> None:
 
 def make_critic(encoder: Encoder, hidden_size: int, agent: str) -> TensorDictModule:
     """A state-value network on ``agent``'s observation, writing ``"state_value"``."""
-    return TensorDictModule(Head(encoder, hidden_size, 1), in_keys=observation_keys(agent), out_keys=["state_value"])
+    return TensorDictModule(
+        Head(encoder, hidden_size, 1), in_keys=observation_keys(agent, encoder), out_keys=["state_value"]
+    )
 
 
 class SplitJoint(nn.Module):
-    """Split a joint action ``a = 3 u_m + u_c`` (as in ``activeperc/Joint-v0``) into the two agents' actions."""
+    """Split a joint action ``a = 3 u_m + u_c`` (as in ``activeperc/Joint-v1``) into the two agents' actions."""
 
     def forward(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(u_m, u_c)`` from the joint action."""

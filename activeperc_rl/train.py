@@ -251,9 +251,9 @@ def load_run_config(out: str | Path) -> TrainConfig:
     and that file, the checkpoint's (``ValueError`` naming the directory when there is neither)."""
     path = Path(out) / CONFIG
     if path.is_file():
-        return TrainConfig.from_dict(load_yaml(path))
+        return TrainConfig.from_saved(load_yaml(path))
     if (Path(out) / CHECKPOINT).is_file():
-        return TrainConfig.from_dict(load_checkpoint(Path(out) / CHECKPOINT)["config"])
+        return TrainConfig.from_saved(load_checkpoint(Path(out) / CHECKPOINT)["config"])
     raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")
 
 

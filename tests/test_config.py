@@ -40,9 +40,19 @@ def test_invalid_value_names_the_field(field, value):
         EnvConfig(**{field: value})
 
 
-@pytest.mark.parametrize("hz, steps", [(200, 1), (200 / 3, 3), (66.67, 3), (5, 40), (4.0, 50), (0.5, 400)])
-def test_control_period_is_whole_physics_steps(hz, steps):
-    assert activeperc_env.Simulator(EnvConfig(control_hz=hz)).substeps == steps
+@pytest.mark.parametrize(
+    ("version", "hz", "steps"),
+    [(0, 200, 1), (0, 200 / 3, 3), (0, 66.67, 3), (0, 5, 40), (0, 4.0, 50), (0, 0.5, 400)]
+    + [(1, 50, 1), (1, 50 / 3, 3), (1, 5, 10), (1, 2.5, 20), (1, 0.5, 100)],
+)
+def test_control_period_is_whole_physics_steps(version, hz, steps):
+    assert activeperc_env.Simulator(EnvConfig(control_hz=hz, version=version)).substeps == steps
+
+
+@pytest.mark.parametrize(("version", "hz"), [(1, 40), (1, 100), (1, 3), (0, 300), (0, 3)])
+def test_a_control_period_of_part_of_a_physics_step_is_named(version, hz):
+    with pytest.raises(ValueError, match=f"control_hz={float(hz)!r} is invalid.*v{version} room"):
+        EnvConfig(control_hz=hz, version=version)
 
 
 def test_unknown_option_is_named():
@@ -57,7 +67,7 @@ def test_unknown_option_is_named():
 
 def test_autoreset_mode_given_to_one_room_says_where_it_goes():
     with pytest.raises(ValueError, match=r"vector_kwargs=\{'autoreset_mode': ...\}"):
-        gymnasium.make_vec("activeperc/Joint-v0", 2, vectorization_mode="sync", autoreset_mode="SameStep")
+        gymnasium.make_vec("activeperc/Joint-v1", 2, vectorization_mode="sync", autoreset_mode="SameStep")
 
 
 def test_empty_room_is_allowed():
@@ -85,3 +95,31 @@ def test_help_shows_every_field_with_its_default_and_meaning():
             assert f"{name} (" in text and f"default {getattr(cls(), name)!r}" in text, name
             assert doc in text, name
     assert "Horizontal field of view of the robot's camera" in EnvConfig.__doc__
+
+
+def test_a_run_saved_before_room_v1_existed_is_a_v0_run(tmp_path):
+    """config.yaml and checkpoints of earlier releases hold no env.version: they trained in v0, and load so."""
+    import dataclasses
+
+    import yaml
+
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.train import load_run_config
+
+    old = TrainConfig(env=EnvConfig(version=0)).to_dict()
+    del old["env"]["version"]
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(old))
+    assert load_run_config(tmp_path).env == EnvConfig(version=0)
+    assert TrainConfig.from_dict({"env": {"fov": 100}}).env.version == 1  # a preset's room is today's default
+    sim = activeperc_env.Simulator(EnvConfig(version=0))
+    sim.reset(seeds=[0])
+    state = sim.get_state()
+    del state["config"]["version"]
+    sim.set_state(state)  # a v0 simulator takes the old state
+    with pytest.raises(ValueError, match="another config"):
+        activeperc_env.Simulator(EnvConfig()).set_state(state)
+    pickled = sim.__getstate__()
+    del pickled["config"]["version"]
+    copy = activeperc_env.Simulator.__new__(activeperc_env.Simulator)
+    copy.__setstate__(pickled)  # an old pickle unpickles into a v0 room
+    assert copy.config == EnvConfig(version=0) and dataclasses.asdict(copy.config) == dataclasses.asdict(sim.config)

@@ -89,8 +89,8 @@ def test_a_copied_aec_env_goes_on_as_the_original(how):
 
 @pytest.mark.parametrize("how", COPIES)
 def test_a_copied_gymnasium_env_goes_on_as_the_original(how):
-    env = gymnasium.make("activeperc/Joint-v0", max_cycles=15)
-    vec = gymnasium.make_vec("activeperc/Joint-v0", num_envs=3, max_cycles=15)
+    env = gymnasium.make("activeperc/Joint-v1", max_cycles=15)
+    vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=3, max_cycles=15)
     env.reset(seed=0)
     vec.reset(seed=0)
     rng = np.random.default_rng(3)

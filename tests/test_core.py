@@ -28,7 +28,7 @@ def test_same_seed_same_episode_through_every_api():
     aec.reset(seed=SEED)
     par = activeperc_env.parallel_env()
     par_obs, _ = par.reset(seed=SEED)
-    joint = gymnasium.make("activeperc/Joint-v0")
+    joint = gymnasium.make("activeperc/Joint-v1")
     joint_obs, _ = joint.reset(seed=SEED)
     first = sim.render()
     for obs in (aec.observe(MOVER), par_obs[MOVER], joint_obs):
@@ -224,7 +224,7 @@ def test_bad_seeds_are_named_by_every_api(seed):
             env.reset(seed=seed)
     if is_int(seed) and seed >= 0:  # Gymnasium refuses the others itself
         with pytest.raises(ValueError, match=match):
-            gymnasium.make("activeperc/Joint-v0").reset(seed=seed)
+            gymnasium.make("activeperc/Joint-v1").reset(seed=seed)
     with pytest.raises(ValueError, match=r"2 ints, one per reset room"):
         Simulator(num_envs=2).reset(seeds=[0, 1, 2])
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from activeperc_env import EnvConfig
+from activeperc_env.config import shown_default
 
 ENV_MD = Path(__file__).resolve().parents[1] / "docs" / "env.md"
 TEXT = ENV_MD.read_text()
@@ -25,7 +26,7 @@ def test_env_md_example_runs(index):
 def test_arguments_table_lists_every_field_with_its_default():
     section = TEXT.split("## Arguments", 1)[1].split("\n## ", 1)[0]
     rows = dict(re.findall(r"^\| `(\w+)` \| `([^`]*)` \|", section, flags=re.MULTILINE))
-    fields = {f.name: f.default for f in dataclasses.fields(EnvConfig)}
+    fields = {f.name: shown_default(EnvConfig, f).replace("'", '"') for f in dataclasses.fields(EnvConfig)}
     assert set(rows) == set(fields), "docs/env.md Arguments table and EnvConfig list different fields"
     for name, default in fields.items():
-        assert rows[name] == repr(default).replace("'", '"'), f"docs/env.md gives {name}={rows[name]}, not {default!r}"
+        assert rows[name] == default, f"docs/env.md gives {name}={rows[name]}, not {default}"

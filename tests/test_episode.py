@@ -13,7 +13,7 @@ def test_episode_writes_map_views_and_video(tmp_path, capsys):
     assert main(["--out", str(out), "--seed", "3", "--fov", "100"]) == 0
     printed = capsys.readouterr().out
     cycles = int(printed.split(" in ")[1].split(" cycles")[0])
-    assert 1 <= cycles <= EnvConfig.max_cycles
+    assert 1 <= cycles <= EnvConfig().max_cycles
     assert iio.imread(out / "map.png").shape == (240, 320, 3)
     views = iio.imread(out / "views.png")
     assert views.shape == (60, 80 * STRIP_CYCLES + STRIP_GAP * (STRIP_CYCLES - 1), 3)

@@ -55,8 +55,8 @@ def test_one_config_per_method_and_fov(sweep):
         assert config.method == ("meta" if task.method.startswith("meta") else task.method)
         if task.method.startswith("meta"):
             assert config.epsilon == float(task.method.removeprefix("meta_eps"))
-        # only the method, epsilon and fov are set: everything else is the default
-        default = TrainConfig(method=config.method, epsilon=config.epsilon).replace(fov=config.env.fov)
+        # only the method, epsilon, fov and the pilot's room (v0) are set: everything else is the default
+        default = TrainConfig(method=config.method, epsilon=config.epsilon, env={"version": 0, "fov": config.env.fov})
         assert config == default
 
 

@@ -8,14 +8,14 @@ from gymnasium.utils.env_checker import check_env
 import activeperc_env  # noqa: F401  (registers the envs)
 
 
-@pytest.mark.parametrize("env_id", ["activeperc/Joint-v0", "activeperc/FixedForward-v0"])
+@pytest.mark.parametrize("env_id", ["activeperc/Joint-v1", "activeperc/FixedForward-v1"])
 def test_check_env(env_id):
     env = gymnasium.make(env_id)
     check_env(env.unwrapped, skip_render_check=False)
 
 
 def test_joint_action_is_move_times_three_plus_look():
-    env = gymnasium.make("activeperc/Joint-v0").unwrapped
+    env = gymnasium.make("activeperc/Joint-v1").unwrapped
     env.reset(seed=0)
     env.step(3 * 2 + 0)  # forward, pan left
     assert np.isclose(env.sim.pan()[0, 0], np.radians(env.config.pan_step))
@@ -24,7 +24,7 @@ def test_joint_action_is_move_times_three_plus_look():
 
 
 def test_fixed_forward_never_pans():
-    env = gymnasium.make("activeperc/FixedForward-v0", fov=100)
+    env = gymnasium.make("activeperc/FixedForward-v1", fov=100)
     obs, _ = env.reset(seed=1)
     for _ in range(10):
         obs, *_ = env.step(env.action_space.sample())
@@ -33,20 +33,20 @@ def test_fixed_forward_never_pans():
 
 
 def test_rgb_array_render_is_the_map_and_no_render_mode_warns():
-    env = gymnasium.make("activeperc/Joint-v0", render_mode="rgb_array")
+    env = gymnasium.make("activeperc/Joint-v1", render_mode="rgb_array")
     env.reset(seed=0)
     assert env.render().shape == (240, 320, 3)
-    plain = gymnasium.make("activeperc/Joint-v0")
+    plain = gymnasium.make("activeperc/Joint-v1")
     plain.reset(seed=0)
     with pytest.warns(UserWarning, match="without a render_mode"):
         assert plain.render() is None
 
 
 def test_info_counts_cycles_and_render_fps_is_the_control_rate():
-    env = gymnasium.make("activeperc/FixedForward-v0", control_hz=4.0)
+    env = gymnasium.make("activeperc/FixedForward-v1", control_hz=2.5)
     assert env.reset(seed=0)[1] == {"cycle": 0}
     assert env.step(2)[4] == {"cycle": 1}
-    assert env.metadata["render_fps"] == 4.0
+    assert env.metadata["render_fps"] == 2.5
     assert activeperc_env.JointEnv.metadata["render_fps"] == activeperc_env.EnvConfig().control_hz
 
 
@@ -70,14 +70,14 @@ def test_render_before_reset_says_so():
 
 
 def test_numpy_seeds_are_seeds():
-    env = gymnasium.make("activeperc/Joint-v0")
+    env = gymnasium.make("activeperc/Joint-v1")
     obs, _ = env.reset(seed=np.int64(5))
     assert env.unwrapped.np_random_seed == 5
-    np.testing.assert_array_equal(obs["image"], gymnasium.make("activeperc/Joint-v0").reset(seed=5)[0]["image"])
+    np.testing.assert_array_equal(obs["image"], gymnasium.make("activeperc/Joint-v1").reset(seed=5)[0]["image"])
 
 
 def test_a_refused_seed_reseeds_nothing():
-    env = gymnasium.make("activeperc/Joint-v0")
+    env = gymnasium.make("activeperc/Joint-v1")
     env.reset(seed=3)
     before = env.unwrapped.np_random.bit_generator.state
     with pytest.raises(ValueError, match="seed 9223372036854775808 is invalid"):

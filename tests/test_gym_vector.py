@@ -8,13 +8,16 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 import activeperc_env
 
-IDS = ["activeperc/Joint-v0", "activeperc/FixedForward-v0"]
+IDS = ["activeperc/Joint-v1", "activeperc/FixedForward-v1", "activeperc/Joint-v0"]
 
 
 def assert_same_observations(ours, theirs):
-    """Same pan angles; same images up to the rasteriser's rounding (a room of ours is drawn in its own tile)."""
-    assert set(ours) == set(theirs) == {"image", "pan"}
-    np.testing.assert_array_equal(ours["pan"], theirs["pan"])
+    """Same pan angles and ranges; same images up to the rasteriser's rounding (a room of ours is drawn in its own
+    tile)."""
+    assert set(ours) == set(theirs)
+    assert {"image", "pan"} <= set(ours)
+    for key in set(ours) - {"image"}:
+        np.testing.assert_array_equal(ours[key], theirs[key])
     assert_same_view(ours["image"], theirs["image"])
 
 
@@ -40,7 +43,7 @@ def actions_for(env_id, vec, rng):
     sim = vec.unwrapped.sim
     moves = [goal_seeking_move(sim, i) for i in range(vec.num_envs - 1)] + [int(rng.integers(3))]
     moves = np.array(moves)
-    if env_id == "activeperc/FixedForward-v0":
+    if env_id == "activeperc/FixedForward-v1":
         return moves
     return 3 * moves + rng.integers(3, size=vec.num_envs)
 
@@ -81,9 +84,12 @@ def test_same_episodes_as_the_sync_vector_env(env_id, mode):
 
 
 def test_reset_mask_and_disabled_autoreset():
-    ours = gymnasium.make_vec("activeperc/FixedForward-v0", num_envs=3, max_cycles=2, autoreset_mode="Disabled")
+    ours = gymnasium.make_vec("activeperc/FixedForward-v1", num_envs=3, max_cycles=2, autoreset_mode="Disabled")
     theirs = gymnasium.make_vec(
-        "activeperc/FixedForward-v0", num_envs=3, max_cycles=2, vectorization_mode="sync",
+        "activeperc/FixedForward-v1",
+        num_envs=3,
+        max_cycles=2,
+        vectorization_mode="sync",
         vector_kwargs={"autoreset_mode": AutoresetMode.DISABLED},
     )
     ours.reset(seed=[3, 4, 7])
@@ -97,8 +103,9 @@ def test_reset_mask_and_disabled_autoreset():
         ours.step(np.array([2, 2, 2]))
     mask = np.array([True, False, True])
     seeds = [None, 5, 20]  # room 0 draws its next layout from the stream seeded with 3; room 1 is not reset
-    (obs, info), (obs2, info2) = ours.reset(seed=seeds, options={"reset_mask": mask}), theirs.reset(
-        seed=seeds, options={"reset_mask": mask.copy()}
+    (obs, info), (obs2, info2) = (
+        ours.reset(seed=seeds, options={"reset_mask": mask}),
+        theirs.reset(seed=seeds, options={"reset_mask": mask.copy()}),
     )
     room_0 = [ours.unwrapped.sim.pose(0)[0], theirs.envs[0].unwrapped.sim.pose(0)[0]]
     np.testing.assert_array_equal(*room_0)
@@ -111,7 +118,7 @@ def test_reset_mask_and_disabled_autoreset():
 
 
 def test_bad_input_is_named():
-    vec = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2)
+    vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2)
     vec.reset(seed=0)
     with pytest.raises(ValueError, match=r"action 9 of room 1 is outside the action space Discrete\(9\)"):
         vec.step(np.array([0, 9]))
@@ -138,22 +145,22 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="marks no room"):
         vec.reset(options={"reset_mask": np.zeros(2, dtype=bool)})
     with pytest.raises(ValueError, match="nthread=-1 is invalid"):
-        gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, nthread=-1)
+        gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, nthread=-1)
     with pytest.raises(ValueError, match="max_episode_steps=0 is invalid"):
-        gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, max_episode_steps=0)
+        gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, max_episode_steps=0)
     vec.close()
     with pytest.raises(ValueError, match="autoreset_mode='sometimes' is invalid"):
         activeperc_env.JointVectorEnv(num_envs=2, autoreset_mode="sometimes")
     with pytest.raises(ValueError, match="render_mode='human' is invalid for a vector env"):
         activeperc_env.JointVectorEnv(num_envs=2, render_mode="human")
     with pytest.raises(ValueError, match="num_envs=0 is invalid"):
-        gymnasium.make_vec("activeperc/Joint-v0", num_envs=0)
+        gymnasium.make_vec("activeperc/Joint-v1", num_envs=0)
     with pytest.raises(ValueError, match="fov=500"):
-        gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, fov=500)
+        gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, fov=500)
 
 
 def test_step_or_render_before_reset_is_refused():
-    vec = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, render_mode="rgb_array")
+    vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, render_mode="rgb_array")
     with pytest.raises(gymnasium.error.ResetNeeded, match="step\\(\\) before reset"):
         vec.step(np.array([0, 1]))
     with pytest.raises(gymnasium.error.ResetNeeded, match="render\\(\\) before reset"):
@@ -169,8 +176,8 @@ def test_step_or_render_before_reset_is_refused():
 
 def test_max_episode_steps_truncates_as_gymnasium_make_does():
     kwargs = {"num_envs": 2, "max_episode_steps": 3, "disable_env_checker": True, "max_cycles": 5}
-    ours = gymnasium.make_vec("activeperc/FixedForward-v0", **kwargs)
-    theirs = gymnasium.make_vec("activeperc/FixedForward-v0", vectorization_mode="sync", **kwargs)
+    ours = gymnasium.make_vec("activeperc/FixedForward-v1", **kwargs)
+    theirs = gymnasium.make_vec("activeperc/FixedForward-v1", vectorization_mode="sync", **kwargs)
     ours.reset(seed=0)
     theirs.reset(seed=0)
     truncated = []
@@ -186,7 +193,7 @@ def test_max_episode_steps_truncates_as_gymnasium_make_does():
 
 
 def test_observations_are_the_callers_own_and_render_gives_every_map():
-    vec = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2, render_mode="rgb_array", fov=100)
+    vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, render_mode="rgb_array", fov=100)
     obs, _ = vec.reset(seed=0)
     kept = obs["image"].copy()
     obs["image"][:] = 0
@@ -201,7 +208,7 @@ def test_observations_are_the_callers_own_and_render_gives_every_map():
 
 def test_gymnasium_vector_wrappers_count_episodes():
     vec = gymnasium.wrappers.vector.RecordEpisodeStatistics(
-        gymnasium.make_vec("activeperc/FixedForward-v0", num_envs=2, max_cycles=3)
+        gymnasium.make_vec("activeperc/FixedForward-v1", num_envs=2, max_cycles=3)
     )
     vec.reset(seed=0)
     for _ in range(3):
@@ -217,7 +224,7 @@ def test_torchrl_gym_wrapper_runs_it_with_autoreset_disabled():
     from torchrl.envs import GymWrapper
     from torchrl.envs.utils import check_env_specs
 
-    vec = gymnasium.make_vec("activeperc/FixedForward-v0", num_envs=3, max_cycles=4, autoreset_mode="Disabled")
+    vec = gymnasium.make_vec("activeperc/FixedForward-v1", num_envs=3, max_cycles=4, autoreset_mode="Disabled")
     env = GymWrapper(vec)
     check_env_specs(env, seed=0)
     data = env.rollout(10, break_when_any_done=False)  # TorchRL resets the finished rooms through reset_mask
@@ -228,7 +235,7 @@ def test_torchrl_gym_wrapper_runs_it_with_autoreset_disabled():
 
 
 def test_odd_reset_arguments_are_taken_or_named():
-    env = gymnasium.make_vec("activeperc/Joint-v0", num_envs=2)
+    env = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2)
     zero_d, _ = env.reset(seed=np.array(3))  # one seed as a 0-d array, as the one-room envs take it
     plain, _ = env.reset(seed=3)
     assert np.array_equal(zero_d["image"], plain["image"])

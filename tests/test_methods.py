@@ -42,8 +42,12 @@ def rollout(done, reward):
         "reward": torch.tensor(reward, dtype=torch.float32).reshape(1, t, 1),
     }
     flags = torch.tensor(done).reshape(1, t, 1)
-    nxt = {"looker": record, "done": flags, "terminated": flags.clone(),
-           "mover": {"reward": torch.tensor(reward, dtype=torch.float32).reshape(1, t, 1)}}
+    nxt = {
+        "looker": record,
+        "done": flags,
+        "terminated": flags.clone(),
+        "mover": {"reward": torch.tensor(reward, dtype=torch.float32).reshape(1, t, 1)},
+    }
     return TensorDict({"next": nxt}, batch_size=[1, t])
 
 
@@ -67,9 +71,18 @@ def test_finished_returns_are_last_rewards():
 
 
 def observation(n):
+    """Random looker views of ``n`` rooms of the default room (its image, pan and range readings)."""
+    rays = EnvConfig().range_rays
     return TensorDict(
-        {"looker": {"observation": {"image": torch.randint(0, 255, (n, 60, 80, 3), dtype=torch.uint8),
-                                    "pan": torch.zeros(n, 1)}}},
+        {
+            "looker": {
+                "observation": {
+                    "image": torch.randint(0, 255, (n, 60, 80, 3), dtype=torch.uint8),
+                    "pan": torch.zeros(n, 1),
+                    "range": torch.rand(n, rays) * 2,
+                }
+            }
+        },
         batch_size=[n],
     )
 
@@ -125,11 +138,20 @@ def test_fixed_looker_and_joint_split():
 def test_encoder_scales_images_without_touching_its_input():
     encoder = make_encoder(EnvConfig(), (4,), 8)
     image = torch.randint(0, 256, (2, 60, 80, 3), dtype=torch.uint8)
-    pan = torch.zeros(2, 1)
+    pan, ranges = torch.zeros(2, 1), torch.full((2, EnvConfig().range_rays), 1.0)
     as_float = image.float()  # a float image is scaled in the encoder's own copy, never in place
     kept = as_float.clone()
-    assert torch.equal(encoder(image, pan), encoder(as_float, pan))
+    assert torch.equal(encoder(image, pan, ranges), encoder(as_float, pan, ranges))
     assert torch.equal(as_float, kept)
+
+
+def test_encoder_reads_the_range_sensor_where_the_room_has_one():
+    torch.manual_seed(0)
+    image, pan = torch.randint(0, 256, (2, 60, 80, 3), dtype=torch.uint8), torch.zeros(2, 1)
+    ranged = make_encoder(EnvConfig(), (4,), 8)
+    near, far = torch.full((2, 13), 0.2), torch.full((2, 13), 2.0)
+    assert not torch.equal(ranged(image, pan, near), ranged(image, pan, far))
+    assert make_encoder(EnvConfig(version=0), (4,), 8)(image, pan).shape == (2, 8)  # v0: image and pan only
 
 
 def test_encoder_names_an_image_of_another_layout():
@@ -213,11 +235,8 @@ def test_meta_e1_looks(e1_looks):
     meta = make_method(config, torch.device("cpu"), start=False)
     mover, looker = meta.policy()
     assert mover is meta.actor
-    views = TensorDict(
-        {"looker": {"observation": {"image": torch.randint(0, 256, (400, 60, 80, 3), dtype=torch.uint8),
-                                    "pan": torch.rand(400, 1)}}},
-        batch_size=[400],
-    )  # fmt: skip
+    views = observation(400)
+    views["looker", "observation", "pan"] = torch.rand(400, 1)
     with set_exploration_type(ExplorationType.RANDOM):  # as in the collectors and activeperc-eval
         looks = looker(views.clone()).get(("looker", "action"))
     if e1_looks == "greedy":

@@ -15,8 +15,8 @@ env.reset(seed=0)
 for agent in env.agent_iter(max_iter=8):
     env.step(env.action_space(agent).sample())
 env.render()
-gymnasium.make("activeperc/Joint-v0").reset(seed=0)
-gymnasium.make_vec("activeperc/FixedForward-v0", num_envs=2).reset(seed=0)
+gymnasium.make("activeperc/Joint-v1").reset(seed=0)
+gymnasium.make_vec("activeperc/FixedForward-v1", num_envs=2).reset(seed=0)
 print(" ".join(sorted(m for m in sys.modules if m.split(".")[0] in {names})))
 """
 

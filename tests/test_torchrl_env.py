@@ -348,7 +348,7 @@ def test_pettingzoo_wrapper_aec():
 
 def test_torchrl_gym_env_builds_the_gymnasium_ids():
     """TorchRL's GymEnv passes frameskip= and drops it when the env refuses it as an unexpected keyword (TypeError)."""
-    for env_id in ("activeperc/Joint-v0", "activeperc/FixedForward-v0"):
+    for env_id in ("activeperc/Joint-v1", "activeperc/FixedForward-v1"):
         env = GymEnv(env_id, max_cycles=3)
         check_env_specs(env, seed=0)
         data = env.rollout(6, break_when_any_done=False)

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from activeperc_env import EnvConfig
+from activeperc_env.config import shown_default
 from activeperc_rl import evaluate
 from activeperc_rl.cli import build_parser
 from activeperc_rl.config import TrainConfig
@@ -27,19 +28,15 @@ def table_rows(title: str) -> dict[str, str]:
     return dict(ROW.findall(section(title)))
 
 
-def config_defaults() -> dict[str, object]:
-    """``{dest: default}`` of every config field that is a flag (TrainConfig's but ``env``, and EnvConfig's)."""
+def config_defaults() -> dict[str, str]:
+    """``{dest: default as typed}`` of every config field that is a flag (TrainConfig's but ``env``, and
+    EnvConfig's): ``16 32`` for ``(16, 32)``, each version's for a field whose default depends on it."""
     defaults = {}
     for cls in (TrainConfig, EnvConfig):
         for f in dataclasses.fields(cls):
             if f.name != "env":
-                defaults[f.name] = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+                defaults[f.name] = shown_default(cls, f, as_flag=True)
     return defaults
-
-
-def as_typed(value) -> str:
-    """A default as it is typed on the command line: ``(16, 32)`` -> ``16 32``."""
-    return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
 
 
 def test_training_md_has_examples():
@@ -61,9 +58,9 @@ def test_train_table_lists_every_flag_with_its_default():
         flag = action.option_strings[0]
         assert flag in rows, f"docs/training.md's activeperc-train table has no row for {flag}"
     for action in from_fields:
-        flag, expected = action.option_strings[0], f"`{as_typed(defaults[action.dest])}`"
+        flag, expected = action.option_strings[0], f"`{defaults[action.dest]}`"
         assert rows[flag] == expected, f"docs/training.md gives {flag} the default {rows[flag]}, not {expected}"
-        assert f"(default: {as_typed(defaults[action.dest])})" in action.help, f"{flag}'s --help shows another default"
+        assert f"(default: {defaults[action.dest]})" in action.help, f"{flag}'s --help shows another default"
     documented = set(rows) - {"--no-" + a.dest.replace("_", "-") for a in actions}
     assert documented <= {a.option_strings[0] for a in actions}, "the table lists flags the parser lacks"
 

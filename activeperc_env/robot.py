@@ -1,0 +1,91 @@
+"""The robot's base in each room version: where it stands, how a reset places it and how a move drives it.
+
+v0 rolls on two driven wheels (a free joint, wheel contacts with the floor, 5-ms physics steps). v1 is a unicycle:
+velocity servos on two slides and a yaw hinge, nothing touching the floor, 20-ms steps. Both take the same three
+moves (turn left, turn right, forward) and hold the same camera on a pan hinge.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from activeperc_env import names
+from activeperc_env.config import EnvConfig
+
+FORWARD = 2  # MOVER_ACTIONS.index("forward")
+
+
+def _address(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    return mujoco.mj_name2id(model, kind, name)
+
+
+class WheeledBase:
+    """v0: a chassis on a free joint, driven by velocity servos on its two wheels."""
+
+    def __init__(self, model: mujoco.MjModel, config: EnvConfig):
+        self.root = int(model.jnt_qposadr[_address(model, mujoco.mjtObj.mjOBJ_JOINT, names.ROOT_JOINT)])
+        self.wheels = [_address(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in (names.LEFT_WHEEL, names.RIGHT_WHEEL)]
+        wheel = config.forward_speed / names.WHEEL_RADIUS
+        turn = math.radians(config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
+        # wheel speed targets (left, right) in rad/s, one row per mover action
+        self._targets = np.array([[-turn, turn], [turn, -turn], [wheel, wheel]])
+
+    def place(self, qpos: np.ndarray, xy: np.ndarray, heading: float) -> None:
+        """Put the base of one room (its ``qpos`` row) at ``xy``, facing ``heading``, on its wheels."""
+        qpos[self.root : self.root + 3] = (*xy, names.WHEEL_RADIUS)
+        half = heading / 2
+        qpos[self.root + 3 : self.root + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
+
+    def drive(self, ctrl: np.ndarray, qpos: np.ndarray, actions: np.ndarray) -> None:
+        """Write the controls (rows of ``ctrl``) of the moves ``actions`` of the rooms whose ``qpos`` rows are given."""
+        ctrl[:, self.wheels] = self._targets[actions]
+
+    def xy(self, qpos: np.ndarray) -> np.ndarray:
+        """(n, 2) positions of the bases of the ``qpos`` rows."""
+        return qpos[:, self.root : self.root + 2]
+
+    def heading(self, qpos: np.ndarray) -> np.ndarray:
+        """(n,) yaw of the bases of the ``qpos`` rows, radians (not wrapped)."""
+        return 2 * np.arctan2(qpos[:, self.root + 6], qpos[:, self.root + 3])
+
+
+class PlanarBase:
+    """v1: a base on slides along x and y and a yaw hinge, each driven by a velocity servo (a unicycle)."""
+
+    def __init__(self, model: mujoco.MjModel, config: EnvConfig):
+        joints = [_address(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.BASE_JOINTS]
+        self.x, self.y, self.yaw = (int(model.jnt_qposadr[j]) for j in joints)
+        self.drives = [_address(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in names.BASE_DRIVES]
+        self._speed = config.forward_speed
+        turn = math.radians(config.turn_speed)
+        self._yaw_rate = np.array([turn, -turn, 0.0])  # per mover action
+
+    def place(self, qpos: np.ndarray, xy: np.ndarray, heading: float) -> None:
+        """Put the base of one room (its ``qpos`` row) at ``xy``, facing ``heading``."""
+        qpos[[self.x, self.y, self.yaw]] = (*xy, heading)
+
+    def drive(self, ctrl: np.ndarray, qpos: np.ndarray, actions: np.ndarray) -> None:
+        """Write the controls (rows of ``ctrl``) of the moves ``actions`` of the rooms whose ``qpos`` rows are given:
+        'forward' drives along the heading the move starts from (a move turns or drives, never both)."""
+        speed = np.where(actions == FORWARD, self._speed, 0.0)
+        yaw = qpos[:, self.yaw]
+        ctrl[:, self.drives] = np.stack([speed * np.cos(yaw), speed * np.sin(yaw), self._yaw_rate[actions]], axis=1)
+
+    def xy(self, qpos: np.ndarray) -> np.ndarray:
+        """(n, 2) positions of the bases of the ``qpos`` rows."""
+        return qpos[:, [self.x, self.y]]
+
+    def heading(self, qpos: np.ndarray) -> np.ndarray:
+        """(n,) yaw of the bases of the ``qpos`` rows, radians (not wrapped)."""
+        return qpos[:, self.yaw]
+
+
+BASES = {0: WheeledBase, 1: PlanarBase}
+
+
+def make_base(model: mujoco.MjModel, config: EnvConfig) -> WheeledBase | PlanarBase:
+    """The base of ``config``'s room version, its addresses looked up in ``model``."""
+    return BASES[config.version](model, config)
