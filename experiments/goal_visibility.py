@@ -36,28 +36,14 @@ import numpy as np
 
 import activeperc_env  # noqa: F401  (sets MUJOCO_GL=egl when headless, before mujoco is imported)
 from activeperc_env import EnvConfig, Simulator, names
+from activeperc_env.scripted import MIN_PIXELS, goal_pixels
 
-# The goal material is rgba (0.9, 0.05, 0.05). Under the scene's lights its pixels measure
-# R in [103, 218] and G, B <= 12; no other material (grey walls, brown floor, green, yellow and
-# blue occluders, black background) comes close to this rule.
-RED_MIN = 80
-GREEN_BLUE_MAX = 50
-MIN_PIXELS = 3  # a visible goal covers at least 4 pixels at 80x60 (measured; see the docstring)
 BATCH = 250
 
 
 def goal_pixel_counts(images: np.ndarray) -> np.ndarray:
-    """Count goal-red pixels per image.
-
-    Args:
-        images: (n, height, width, 3) uint8 first-person views.
-
-    Returns:
-        (n,) int array: pixels with R > ``RED_MIN`` and G, B < ``GREEN_BLUE_MAX``.
-    """
-    r, g, b = (images[..., k].astype(np.int16) for k in range(3))
-    red = (r > RED_MIN) & (g < GREEN_BLUE_MAX) & (b < GREEN_BLUE_MAX)
-    return red.sum(axis=(1, 2))
+    """Goal-red pixels (:func:`activeperc_env.scripted.goal_pixels`) per image of ``images`` (n, H, W, 3) uint8."""
+    return goal_pixels(images).sum(axis=(1, 2))
 
 
 def goal_in_view_cone(sim: Simulator, index: int) -> bool:

@@ -19,6 +19,8 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("goal_visibility.py", ["--min-pixels", "-1"], "--min-pixels must be >= 1, got -1"),
         ("goal_visibility.py", ["--batch", "0"], "--batch must be >= 1, got 0"),
         ("tile_shading.py", ["--rooms", "0"], "--rooms must be >= 1, got 0"),
+        ("scripted_looker_training.py", ["--frames", "0"], "--frames and --episodes must be >= 1"),
+        ("scripted_looker_training.py", ["--looker", "peek"], "invalid choice: 'peek'"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -39,3 +41,16 @@ def test_tile_shading_compares_every_tile_with_one_room():
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("40 views (4 tiles, 10 states, 80x60 pixels) against one room's")
     assert "views that differ at all:" in done.stdout and "by more than one level" in done.stdout
+
+
+def test_a_mover_trains_with_a_scripted_looker_in_its_loop():
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "scripted_looker_training.py"), "--looker", "scan", "--frames", "512",
+         "--episodes", "2"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    import json
+
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["looker"] == "scan" and result["frames"] >= 512 and result["eval"]["episodes"] == 2

@@ -1,0 +1,94 @@
+"""Does a learned mover gain from a looker that looks? The mover trained by A2C with a scripted looker in the loop.
+
+Run from the repository root::
+
+    python experiments/scripted_looker_training.py --looker track --frames 300000 --seed 0
+    python experiments/scripted_looker_training.py --looker fixed --frames 300000 --seed 0   # Fixed_Forward
+
+The mover is ``fixed_forward``'s (the TrainConfig defaults, A2C on the default room), but its environment runs a
+scripted looker of :data:`activeperc_env.scripted.LOOKERS` inside each cycle (``fixed``: the camera held forward,
+which is the Fixed_Forward baseline). After ``--frames`` frames the mover is evaluated with the same looker on
+``--episodes`` held-out layouts (as ``activeperc-eval`` does) and one JSON line is printed. A gain over ``fixed`` is
+what a learned looker could add for this mover; scripted policies alone (``value_of_looking.py``) say what looking
+is worth to a mover that reads the goal's bearing off the image by design.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import torch
+from torch import nn
+
+from activeperc_env import scripted
+from activeperc_env.arguments import ArgumentParser, whole_number
+from activeperc_rl.config import TrainConfig
+from activeperc_rl.evaluate import MAX_ROOMS, evaluate
+from activeperc_rl.methods import FixedForward
+
+
+class ScriptedLooker(nn.Module):
+    """A scripted looker as the TorchRL env's looker module: reads ``("looker", "observation")`` and writes
+    ``("looker", "action")``."""
+
+    def __init__(self, name: str, config, num_envs: int, seed: int = 0):
+        super().__init__()
+        self.policy = scripted.LOOKERS[name](config, num_envs, seed)
+
+    def forward(self, tensordict):
+        """Write the scripted looks of every room into ``tensordict``."""
+        views = {key: tensordict.get(("looker", "observation", key)).cpu().numpy() for key in ("image", "pan")}
+        action = torch.as_tensor(self.policy.act(views), dtype=torch.int64, device=tensordict.device)
+        tensordict.set(("looker", "action"), action)
+        return tensordict
+
+
+class MoverWithScriptedLooker(FixedForward):
+    """``fixed_forward``'s mover and A2C, with a scripted looker in the loop."""
+
+    looker_name = "track"
+
+    def start(self) -> None:
+        """Build the environment, with the scripted looker in the loop."""
+        looker = ScriptedLooker(self.looker_name, self.config.env, self.config.num_envs, self.config.seed)
+        self.collector = self._collector(self.actor, looker=looker)
+
+    def policy(self):
+        """The mover, and a fresh scripted looker for the evaluation's rooms."""
+        return self.actor, ScriptedLooker(self.looker_name, self.config.env, MAX_ROOMS, self.config.seed)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Train, evaluate, print one JSON line."""
+    parser = ArgumentParser(prog="scripted_looker_training.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--looker", choices=sorted(scripted.LOOKERS), default="track", help="scripted looker (track)")
+    parser.add_argument("--frames", type=whole_number, default=300_000, help="training frames (300000)")
+    parser.add_argument("--seed", type=whole_number, default=0, help="seed of the run (0)")
+    parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
+    args = parser.parse_args(argv)
+    if args.frames < 1 or args.episodes < 1:
+        parser.error("--frames and --episodes must be >= 1")
+    config = TrainConfig(method="fixed_forward", frames=args.frames, seed=args.seed)
+    torch.manual_seed(config.seed)
+    torch.set_num_threads(config.torch_threads)
+    cls = FixedForward if args.looker == "fixed" else MoverWithScriptedLooker
+    MoverWithScriptedLooker.looker_name = args.looker
+    method = cls(config, torch.device("cpu"))
+    method.start()
+    start, frames = time.perf_counter(), 0
+    try:
+        while frames < config.frames:
+            frames += method.iterate().frames
+        mover, looker = method.policy()
+        result = evaluate(config, mover, looker, episodes=args.episodes, seed=0)
+    finally:
+        method.close()
+    minutes = round((time.perf_counter() - start) / 60, 1)
+    print(json.dumps({"looker": args.looker, "frames": frames, "seed": args.seed, "eval": result, "minutes": minutes}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
