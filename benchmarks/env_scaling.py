@@ -312,7 +312,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.no_peer:
         measured = peer.Rounds(ours=[measure(i) for i in range(args.rounds)], peer=None, why="skipped (--no-peer)")
     else:
-        measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
+        measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads)
     rounds = measured.ours
     print()
 

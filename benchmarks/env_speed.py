@@ -11,7 +11,7 @@ What it measures (random actions throughout, each figure timed for ``--seconds``
 2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
    over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
    only the rooms whose camera turned), then resetting and rendering the rooms that are done.
-3. Gymnasium's vector API on ``activeperc/Joint-v0`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
+3. Gymnasium's vector API on ``activeperc/Joint-v1`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
    one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
    16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render (a
    room's step that only resets it, the step after its episode ended, is not counted).
@@ -26,10 +26,14 @@ round and after each, and each round's figure is divided by the mean of the two 
 machine's speed drifts over minutes, and a ratio of figures taken far apart measures the drift. The report gives the
 median of the rounds for every figure and ratio, each round's ratio, and judges the goals on the median ratio.
 
+Every figure is taken for each room version of ``--versions`` (v1, the default room; ``--versions 0 1`` compares the
+paper-faithful v0 room with v1 in the same rounds).
+
 Run it from the repository root (MiniWorld comes with the ``bench`` extra,
 ``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
 
     python benchmarks/env_speed.py              # 5 s per measurement, 3 rounds (about 3 minutes)
+    python benchmarks/env_speed.py --versions 0 1 --seconds 3
     python benchmarks/env_speed.py --seconds 2 --rounds 1 --json
 """
 
@@ -85,6 +89,7 @@ def machine_info() -> dict:
         "platform": platform.platform(),
         "python": platform.python_version(),
         "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
+        "lp_num_threads": os.environ.get("LP_NUM_THREADS", "llvmpipe's default"),
     }
 
 
@@ -99,12 +104,12 @@ def gl_renderer_name(sim) -> str:
         return "?"
 
 
-def random_aec(seed: int):
-    """The PettingZoo AEC env reset from ``seed``, and one random-action cycle of it (``cycle() -> 1``) that resets the
-    env when an episode ends."""
+def random_aec(seed: int, version: int = 1):
+    """The PettingZoo AEC env of room ``version`` reset from ``seed``, and one random-action cycle of it (``cycle() ->
+    1``) that resets the env when an episode ends."""
     import activeperc_env
 
-    env = activeperc_env.env()
+    env = activeperc_env.env(version=version)
     env.reset(seed=seed)
     for i, agent in enumerate(env.possible_agents):
         env.action_space(agent).seed(seed + i)
@@ -120,9 +125,9 @@ def random_aec(seed: int):
     return env, cycle
 
 
-def bench_aec(seconds: float, warmup: float, seed: int) -> tuple[float, str]:
+def bench_aec(seconds: float, warmup: float, seed: int, version: int = 1) -> tuple[float, str]:
     """Cycles/s of the PettingZoo AEC env with random actions; also returns the GL renderer's name."""
-    env, cycle = random_aec(seed)
+    env, cycle = random_aec(seed, version)
     gl_renderer = gl_renderer_name(env.unwrapped.sim)
     try:
         return timed_rate(cycle, seconds, warmup), gl_renderer
@@ -138,14 +143,14 @@ AEC_PARTS = {
 }
 
 
-def aec_breakdown(seconds: float, warmup: float, seed: int) -> dict[str, float]:
+def aec_breakdown(seconds: float, warmup: float, seed: int, version: int = 1) -> dict[str, float]:
     """Where an AEC cycle's time goes: milliseconds per cycle in each of :data:`AEC_PARTS`, in ``"rest"`` (PettingZoo's
     API, action checks, observation dicts, drawing the random actions) and in all, ``"total"``.
 
     The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
     the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
     """
-    env, cycle = random_aec(seed)
+    env, cycle = random_aec(seed, version)
     sim = env.unwrapped.sim
     spent = dict.fromkeys(AEC_PARTS, 0.0)
 
@@ -198,21 +203,22 @@ def core_cycle(sim, rng, timed: Callable[[str, Callable[[], object]], None] = un
         timed("render", lambda: sim.render(done))
 
 
-def random_core(num_envs: int, seed: int):
-    """A ``Simulator(num_envs)`` reset from ``seed`` with its first views rendered, and the rng of its actions."""
+def random_core(num_envs: int, seed: int, version: int = 1):
+    """A ``Simulator(num_envs)`` of room ``version`` reset from ``seed`` with its first views rendered, and the rng of
+    its actions."""
     import numpy as np
 
     import activeperc_env
 
-    sim = activeperc_env.Simulator(num_envs=num_envs)
+    sim = activeperc_env.Simulator(activeperc_env.EnvConfig(version=version), num_envs=num_envs)
     sim.reset(seeds=seed + np.arange(num_envs))
     sim.render()
     return sim, np.random.default_rng(seed)
 
 
-def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
+def bench_core(num_envs: int, seconds: float, warmup: float, seed: int, version: int = 1) -> float:
     """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
-    sim, rng = random_core(num_envs, seed)
+    sim, rng = random_core(num_envs, seed, version)
 
     def cycle() -> int:
         core_cycle(sim, rng)
@@ -224,13 +230,14 @@ def bench_core(num_envs: int, seconds: float, warmup: float, seed: int) -> float
         sim.close()
 
 
-def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> float:
-    """Steps/s, summed over the rooms, of ``gymnasium.make_vec("activeperc/Joint-v0", 16)`` in ``mode``
+def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int, version: int = 1) -> float:
+    """Steps/s, summed over the rooms, of ``gymnasium.make_vec("activeperc/Joint-vVERSION", 16)`` in ``mode``
     (``"vector_entry_point"``: ours; ``"sync"``: Gymnasium's ``SyncVectorEnv``), random actions."""
     import gymnasium
     import numpy as np
 
-    env = gymnasium.make_vec("activeperc/Joint-v0", num_envs=GYM_VEC_SIZE, vectorization_mode=mode)
+    env_id = f"activeperc/Joint-v{version}"
+    env = gymnasium.make_vec(env_id, num_envs=GYM_VEC_SIZE, vectorization_mode=mode)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     ended = np.zeros(GYM_VEC_SIZE, dtype=bool)
@@ -250,32 +257,35 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int) -> flo
 FIGURES = {  # key of each figure of ours: its label and unit
     "aec": ("AEC env activeperc_env.env()", "cycles/s"),
     **{f"core_n{n}": (f"core Simulator(num_envs={n})", "cycles/s   (up to 2 renders each)") for n in CORE_SIZES},
-    f"gym_vector_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0 N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
-    f"gym_sync_n{GYM_VEC_SIZE}": (f"make_vec Joint-v0, mode sync N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
+    f"gym_vector_n{GYM_VEC_SIZE}": (f"make_vec Joint N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
+    f"gym_sync_n{GYM_VEC_SIZE}": (f"make_vec Joint, mode sync N={GYM_VEC_SIZE}", "steps/s    (1 render each)"),
 }
 
 
-def measure_round(seconds: float, warmup: float, seed: int) -> tuple[dict[str, float], dict[str, float], str]:
-    """One round of every figure of ours (:data:`FIGURES`) and of the AEC cycle's breakdown (:func:`aec_breakdown`);
-    also returns the GL renderer's name."""
+def measure_round(
+    seconds: float, warmup: float, seed: int, version: int = 1
+) -> tuple[dict[str, float], dict[str, float], str]:
+    """One round of every figure of ours (:data:`FIGURES`) in room ``version`` and of the AEC cycle's breakdown
+    (:func:`aec_breakdown`); also returns the GL renderer's name."""
     ours = {}
-    ours["aec"], gl_renderer = bench_aec(seconds, warmup, seed)
-    aec_parts = aec_breakdown(seconds, warmup, seed)
+    ours["aec"], gl_renderer = bench_aec(seconds, warmup, seed, version)
+    aec_parts = aec_breakdown(seconds, warmup, seed, version)
     for n in CORE_SIZES:
-        ours[f"core_n{n}"] = bench_core(n, seconds, warmup, seed)
+        ours[f"core_n{n}"] = bench_core(n, seconds, warmup, seed, version)
     for mode, key in (("vector_entry_point", "gym_vector"), ("sync", "gym_sync")):
-        ours[f"{key}_n{GYM_VEC_SIZE}"] = bench_gym_vector(mode, seconds, warmup, seed)
+        ours[f"{key}_n{GYM_VEC_SIZE}"] = bench_gym_vector(mode, seconds, warmup, seed, version)
     return ours, aec_parts, gl_renderer
 
 
-def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None):
-    """Per-round ratios ours/MiniWorld (:func:`peer.bracketed_ratios`) of every figure, their medians, and the two
-    goals judged on the medians (all empty when MiniWorld was not measured)."""
+def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None, versions=(1,)):
+    """Per-round ratios ours/MiniWorld (:func:`peer.bracketed_ratios`) of every figure (keys ``FIGURE_vVERSION``),
+    their medians, and the two goals of each room version judged on the medians (all empty when MiniWorld was not
+    measured)."""
     if not peer_rates:
         return {}, {}, {}
     per_round = {key: peer.bracketed_ratios([r[key] for r in rounds], peer_rates) for key in rounds[0]}
     medians = {key: statistics.median(values) for key, values in per_round.items()}
-    goals = {name: medians[key] >= multiple for key, multiple, name in GOALS}
+    goals = {f"v{v} {name}": medians[f"{key}_v{v}"] >= multiple for v in versions for key, multiple, name in GOALS}
     return per_round, medians, goals
 
 
@@ -316,12 +326,20 @@ def add_timing_flags(parser: argparse.ArgumentParser, seconds: float, warmup: fl
     parser.add_argument(
         "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
     )
+    parser.add_argument(
+        "--peer-lp-threads",
+        type=at_least(int, "peer-lp-threads", 0),
+        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
+    )
 
 
 def main() -> None:
     """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
+    parser.add_argument(
+        "--versions", type=int, nargs="+", choices=(0, 1), default=[1], help="room versions, each in every round (1)"
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args()
 
@@ -334,45 +352,59 @@ def main() -> None:
     print(f"         {machine['platform']}, Python {machine['python']}")
     print(
         f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed};"
-        f" {args.rounds} round(s) of ours, MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s) of ours (room version {', '.join(map(str, args.versions))} in each),"
+        " MiniWorld timed before the first and after each"
     )
     print()
 
-    breakdowns = []
+    breakdowns = {version: [] for version in args.versions}
 
     def measure(i: int) -> dict[str, float]:
-        ours, aec_parts, machine["gl_renderer"] = measure_round(args.seconds, args.warmup, args.seed)
-        breakdowns.append(aec_parts)
+        ours = {}
+        for version in args.versions:
+            figures, aec_parts, machine["gl_renderer"] = measure_round(args.seconds, args.warmup, args.seed, version)
+            breakdowns[version].append(aec_parts)
+            ours |= {f"{key}_v{version}": rate for key, rate in figures.items()}
         print(f"round {i + 1}: " + ", ".join(f"{key} {rate:.1f}" for key, rate in ours.items()), flush=True)
         return ours
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed)
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads)
     rounds, peer_rates = measured.ours, measured.peer
     print()
 
     medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
-    aec_parts = {part: statistics.median(b[part] for b in breakdowns) for part in breakdowns[0]}
     how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
-    print(f"figures: {how}; GL: {machine['gl_renderer']}")
-    for key, (label, unit) in FIGURES.items():
-        print(f"ours  {label:<34}{medians[key]:9.1f} {unit}")
+    print(f"figures: {how}; GL: {machine['gl_renderer']}, LP_NUM_THREADS: {machine['lp_num_threads']}")
+    for version in args.versions:
+        for key, (label, unit) in FIGURES.items():
+            print(f"ours  v{version} {label:<34}{medians[f'{key}_v{version}']:9.1f} {unit}")
     print(peer.describe(measured))
     print()
 
-    parts = " + ".join(f"{label} {aec_parts[part]:.2f}" for part, label in AEC_PARTS.items())
-    rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts['rest']:.2f}"
-    peer_step = f"; a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms" if peer_rates else ""
-    print(f"where an AEC cycle goes (timed apart, medians): {aec_parts['total']:.2f} ms = {parts} + {rest}{peer_step}")
+    aec_parts = {}
+    for version in args.versions:
+        aec_parts[version] = {part: statistics.median(b[part] for b in breakdowns[version]) for part in AEC_PARTS}
+        aec_parts[version] |= {key: statistics.median(b[key] for b in breakdowns[version]) for key in ("rest", "total")}
+        parts = " + ".join(f"{label} {aec_parts[version][part]:.2f}" for part, label in AEC_PARTS.items())
+        rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts[version]['rest']:.2f}"
+        print(
+            f"where a v{version} AEC cycle goes (timed apart, medians): {aec_parts[version]['total']:.2f} ms = "
+            f"{parts} + {rest}"
+        )
+    if peer_rates:
+        print(f"a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms")
     print()
 
-    per_round, ratios, goals = summarise(rounds, peer_rates)
+    per_round, ratios, goals = summarise(rounds, peer_rates, args.versions)
     if ratios:
         print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
         for key, values in per_round.items():
-            print(f"ratio {key:<16}{peer.spread(values, 2, 'x')}")
-        for key, multiple, name in GOALS:
-            verdict = "MET" if goals[name] else "NOT MET"
-            print(f"goal  {name}: {verdict} (median; {peer.rounds_met(per_round[key], multiple)})")
+            print(f"ratio {key:<19}{peer.spread(values, 2, 'x')}")
+        for version in args.versions:
+            for key, multiple, name in GOALS:
+                verdict = "MET" if goals[f"v{version} {name}"] else "NOT MET"
+                met = peer.rounds_met(per_round[f"{key}_v{version}"], multiple)
+                print(f"goal  v{version} {name}: {verdict} (median; {met})")
     else:
         print("ratios and goals: unknown, MiniWorld could not be measured")
 
@@ -382,6 +414,7 @@ def main() -> None:
             "seconds": args.seconds,
             "warmup": args.warmup,
             "seed": args.seed,
+            "versions": args.versions,
             "rounds": rounds,
             "ours_cycles_per_s": medians,
             "aec_ms_per_cycle": aec_parts,

@@ -40,16 +40,32 @@ class MiniWorld:
 
     Args:
         seed: seed of the env's reset and of its random actions.
+        lp_threads: ``LP_NUM_THREADS`` of the child (Mesa's llvmpipe threads; 0: it draws in the calling thread).
+            ``None``: as its users run it, llvmpipe's default, unless this process was started with the variable
+            set (``import activeperc_env`` sets it to 0 for us when it is unset; MiniWorld does not).
 
-    ``info`` holds the child's ``version``, ``obs_shape`` and ``gl_renderer``. Use it as a context manager, or
-    call :meth:`close`. Raises :class:`PeerUnavailable` when the child cannot start or answer.
+    ``info`` holds the child's ``version``, ``obs_shape``, ``gl_renderer`` and ``lp_num_threads``. Use it as a
+    context manager, or call :meth:`close`. Raises :class:`PeerUnavailable` when the child cannot start or answer.
     """
 
-    def __init__(self, seed: int = 0):
+    def __init__(self, seed: int = 0, lp_threads: int | None = None):
+        from activeperc_env import gl
+
+        environment = dict(os.environ)
+        if lp_threads is not None:
+            environment["LP_NUM_THREADS"] = str(lp_threads)
+        elif gl.LLVMPIPE_THREADS_CHOSEN:
+            environment.pop("LP_NUM_THREADS", None)
         self._stderr = tempfile.TemporaryFile(mode="w+")
         command = [sys.executable, os.path.abspath(__file__), "--serve", "--seed", str(seed)]
         self._proc = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, text=True, bufsize=1
+            command,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            text=True,
+            bufsize=1,
+            env=environment,
         )
         self._answers: queue.Queue[str | None] = queue.Queue()
         threading.Thread(target=self._read_answers, daemon=True).start()
@@ -128,15 +144,23 @@ class Rounds:
     """Why MiniWorld was not measured, when it was not."""
 
 
-def in_rounds(rounds: int, measure_round: Callable[[int], object], seconds: float, warmup: float, seed: int) -> Rounds:
-    """Call ``measure_round(i)`` for ``i`` in ``range(rounds)``, with MiniWorld timed for ``seconds`` (after
-    ``warmup``) before the first round and after each; each MiniWorld figure is printed as it comes.
+def in_rounds(
+    rounds: int,
+    measure_round: Callable[[int], object],
+    seconds: float,
+    warmup: float,
+    seed: int,
+    lp_threads: int | None = None,
+) -> Rounds:
+    """Call ``measure_round(i)`` for ``i`` in ``range(rounds)``, with MiniWorld (``LP_NUM_THREADS=lp_threads``, as
+    :class:`MiniWorld` takes it) timed for ``seconds`` (after ``warmup``) before the first round and after each; each
+    MiniWorld figure is printed as it comes.
 
     When MiniWorld cannot start or stops answering, our rounds go on and the result says why.
     """
     result = Rounds()
     try:
-        miniworld = MiniWorld(seed)
+        miniworld = MiniWorld(seed, lp_threads)
         result.info = miniworld.info
     except PeerUnavailable as error:
         miniworld, result.peer, result.why = None, None, str(error)
@@ -173,7 +197,7 @@ def describe(measured: Rounds, width: int = 34) -> str:
     every = ", ".join(f"{rate:.1f}" for rate in measured.peer)
     return (
         f"peer  {label:<{width}}{statistics.median(measured.peer):9.1f} steps/s    (median of {every}; raw env.step,"
-        f" obs {shape}, GL: {info['gl_renderer']})"
+        f" obs {shape}, GL: {info['gl_renderer']}, LP_NUM_THREADS: {info.get('lp_num_threads', '?')})"
     )
 
 
@@ -217,7 +241,13 @@ def serve(seed: int) -> None:
         gl_renderer = pyglet.gl.gl_info.get_renderer()
     except Exception:  # only informative
         gl_renderer = "?"
-    info = {"version": miniworld.__version__, "obs_shape": list(obs.shape), "gl_renderer": gl_renderer}
+    threads = os.environ.get("LP_NUM_THREADS", "llvmpipe's default")
+    info = {
+        "version": miniworld.__version__,
+        "obs_shape": list(obs.shape),
+        "gl_renderer": gl_renderer,
+        "lp_num_threads": threads,
+    }
     print(TAG + json.dumps(info), flush=True)
 
     def step() -> int:

@@ -140,11 +140,15 @@ def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
 def combine(results: list[dict]) -> dict:
     """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time."""
     total = {key: sum(r[key] for r in results) for key in ("iterations", "frames", "seconds", "collect_s", "learn_s")}
-    return results[-1] | total | {
-        "frames_per_s": statistics.median(r["frames_per_s"] for r in results),
-        "frames_per_s_rounds": [r["frames_per_s"] for r in results],
-        "frames_per_iteration": total["frames"] / total["iterations"],
-    }
+    return (
+        results[-1]
+        | total
+        | {
+            "frames_per_s": statistics.median(r["frames_per_s"] for r in results),
+            "frames_per_s_rounds": [r["frames_per_s"] for r in results],
+            "frames_per_iteration": total["frames"] / total["iterations"],
+        }
+    )
 
 
 def main() -> None:
@@ -195,6 +199,11 @@ def main() -> None:
         default=3,
         help="rounds of the methods, MiniWorld timed around each (3)",
     )
+    parser.add_argument(
+        "--peer-lp-threads",
+        type=int,
+        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args()
 
@@ -234,7 +243,7 @@ def main() -> None:
             gc.collect()
         return results
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0)
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads)
     rounds, peer_rates = measured.ours, measured.peer
     ours = {name: combine([r[name] for r in rounds]) for name in args.methods}
     print()
