@@ -105,12 +105,13 @@ class EnvConfig:
     It picks the robot, its physics and the defaults shown per version."""
 
     def __post_init__(self) -> None:
-        if is_int(self.version) and self.version in VERSIONS:
-            for name, by_version in self.VERSION_DEFAULTS.items():
-                if getattr(self, name) is None:
-                    object.__setattr__(self, name, by_version[int(self.version)])
+        if not (is_int(self.version) and self.version in VERSIONS):  # first: the other defaults depend on it
+            raise ValueError(f"EnvConfig.version={self.version!r} is invalid: expected one of {VERSIONS}")
+        for name, by_version in self.VERSION_DEFAULTS.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, by_version[int(self.version)])
         normalize_numbers(self)
-        timestep = PHYSICS_TIMESTEP.get(self.version, PHYSICS_TIMESTEP[VERSIONS[-1]])
+        timestep = PHYSICS_TIMESTEP[self.version]
         checks = {
             "fov": is_number(self.fov) and 0.0 < self.fov < 180.0,
             "width": is_int(self.width) and 8 <= self.width <= 1024,
@@ -128,7 +129,6 @@ class EnvConfig:
             "range_rays": is_int(self.range_rays) and 0 <= self.range_rays <= MAX_RANGE_RAYS,
             "range_max": is_number(self.range_max) and 0.2 <= self.range_max <= 10.0,
             "looker_reward": isinstance(self.looker_reward, str) and self.looker_reward in LOOKER_REWARDS,
-            "version": is_int(self.version) and self.version in VERSIONS,
         }
         allowed = {
             "fov": "a number of degrees in (0, 180)",
@@ -146,7 +146,6 @@ class EnvConfig:
             "range_rays": f"an int in [0, {MAX_RANGE_RAYS}]",
             "range_max": "metres in [0.2, 10]",
             "looker_reward": f"one of {LOOKER_REWARDS}",
-            "version": f"one of {VERSIONS}",
         }
         for field, ok in checks.items():
             if not ok:

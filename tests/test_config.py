@@ -25,7 +25,7 @@ from activeperc_env.config import EnvConfig, field_docs
         ("pan_range", 190),
         ("pan_step", 0),
         ("control_hz", 0),
-        ("control_hz", 30),  # 6.67 physics steps of 5 ms
+        ("control_hz", 30),  # 1.67 physics steps of 20 ms
         ("control_hz", 150),
         ("looker_reward", "mine"),
         ("fov", "60"),
@@ -33,6 +33,14 @@ from activeperc_env.config import EnvConfig, field_docs
         ("max_cycles", True),
         ("width", 80.0),
         ("looker_reward", 3),
+        ("range_rays", -1),
+        ("range_rays", 65),
+        ("range_rays", 1.5),
+        ("range_max", 0.1),
+        ("range_max", "2"),
+        ("version", 2),
+        ("version", "1"),
+        ("version", True),
     ],
 )
 def test_invalid_value_names_the_field(field, value):
