@@ -245,9 +245,15 @@ class TrainConfig:
         return values
 
     def replace(self, **changes) -> TrainConfig:
-        """A copy with ``changes`` applied; env fields may be given by name too (``fov=100``)."""
+        """A copy with ``changes`` applied; env fields may be given by name too (``fov=100``), and a new ``version``
+        brings its own defaults for the options that were at the old version's."""
         env_fields = {f.name for f in dataclasses.fields(EnvConfig)}
         env_changes = {k: changes.pop(k) for k in list(changes) if k in env_fields}
+        if env_changes.get("version", self.env.version) != self.env.version:
+            # another room: the options still at the old version's defaults take the new one's
+            for name, by_version in EnvConfig.VERSION_DEFAULTS.items():
+                if name not in env_changes and getattr(self.env, name) == by_version[self.env.version]:
+                    env_changes[name] = None
         if env_changes:
             changes["env"] = dataclasses.replace(self.env, **env_changes)
         values = self.to_dict() | changes

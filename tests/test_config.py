@@ -131,3 +131,13 @@ def test_a_run_saved_before_room_v1_existed_is_a_v0_run(tmp_path):
     copy = activeperc_env.Simulator.__new__(activeperc_env.Simulator)
     copy.__setstate__(pickled)  # an old pickle unpickles into a v0 room
     assert copy.config == EnvConfig(version=0) and dataclasses.asdict(copy.config) == dataclasses.asdict(sim.config)
+
+
+def test_replacing_the_version_brings_that_versions_defaults():
+    from activeperc_rl.config import TrainConfig
+
+    v0 = TrainConfig().replace(version=0)
+    assert v0.env == EnvConfig(version=0)
+    kept = TrainConfig().replace(version=0, turn_speed=45)  # an option given with it stays as given
+    assert kept.env == EnvConfig(version=0, turn_speed=45)
+    assert TrainConfig(env=EnvConfig(version=0, max_cycles=50)).replace(version=1).env == EnvConfig(max_cycles=50)
