@@ -42,7 +42,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         os.replace(temporary, path)
     except BaseException as error:
         temporary.unlink(missing_ok=True)
-        if isinstance(error, OSError) and error.filename == str(temporary):
+        if isinstance(error, OSError) and error.errno and error.filename in (None, str(temporary)):  # a write: no name
             raise _naming(error, path) from error
         raise
 

@@ -9,6 +9,7 @@ written after the checkpoint (and a last row torn by a kill) are dropped, so ``f
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import torch
@@ -24,9 +25,13 @@ METRIC_COLUMNS = ("frames", "iteration", "time_s", "fps", "success_rate", "mean_
 
 
 def save_checkpoint(path: str | Path, state: dict) -> None:
-    """Write ``state`` with ``torch.save`` atomically (temporary file, fsync, rename)."""
+    """Write ``state`` with ``torch.save`` atomically (temporary file, fsync, rename). It is serialised in memory
+    first and written with Python's own file I/O, so that a full disk raises ``OSError`` (torch's writer raises a
+    ``RuntimeError`` of its own)."""
+    buffer = io.BytesIO()
+    torch.save(state, buffer)
     with atomic_path(path) as temporary:
-        torch.save(state, temporary)
+        temporary.write_bytes(buffer.getbuffer())
 
 
 def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict:

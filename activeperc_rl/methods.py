@@ -206,6 +206,13 @@ class Method:
         """
         raise NotImplementedError
 
+    def non_finite(self) -> str | None:
+        """The name of the first network with a weight that is NaN or infinite (the learning diverged), or ``None``."""
+        for name, module in self.modules.items():
+            if not all(torch.isfinite(p).all() for p in module.parameters()):
+                return name
+        return None
+
     def state_dict(self) -> dict:
         """Networks, optimizers and the method's own counters."""
         return {

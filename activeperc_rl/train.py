@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import sys
 import time
@@ -183,10 +184,19 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                     step = method.iterate()
                 except WorkerError as error:
                     raise WorkerError(f"{error}; {kept}: continue with --resume --out {out}") from None
-                except ValueError as error:  # e.g. a distribution refusing NaN logits: the learning diverged
+                except (ValueError, RuntimeError) as error:  # e.g. sampling from NaN logits: the learning diverged
+                    broken = method.non_finite()
+                    if not (isinstance(error, ValueError) or broken or _mentions_non_finite(error)):
+                        raise
+                    why = f"the weights of {broken} are not finite" if broken else " ".join(str(error).split())
                     raise TrainingError(
-                        f"training failed at iteration {iteration + 1} ({frames} frames): {error}; {kept} in {out}"
+                        f"training failed at iteration {iteration + 1} ({frames} frames): {why}; {kept} in {out}"
                     ) from error
+                if broken := method.non_finite():
+                    raise TrainingError(
+                        f"training diverged at iteration {iteration + 1} ({frames} frames): the weights of {broken} "
+                        f"are not finite; {kept} in {out}"
+                    )
                 seconds = time.perf_counter() - start
                 frames, iteration, elapsed = frames + step.frames, iteration + 1, elapsed + seconds
                 window.extend(step.returns)
@@ -234,6 +244,11 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
             )
     print(f"activeperc-train: done, {frames} frames; the run is in {out}", flush=True)
     return result
+
+
+def _mentions_non_finite(error: Exception) -> bool:
+    """Whether torch's ``error`` is about NaN or infinite values (as when a distribution samples from NaN logits)."""
+    return re.search(r"\b(nan|inf)\b", str(error), flags=re.IGNORECASE) is not None
 
 
 class TrainingError(RuntimeError):

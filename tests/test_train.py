@@ -497,11 +497,13 @@ def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     path = tmp_path / "checkpoint.pt"
     save_checkpoint(path, {"frames": 1})
 
-    def broken_save(obj, f):
-        Path(f).write_bytes(b"half a checkpoint")
+    write_bytes = Path.write_bytes
+
+    def broken_write(self, data):  # a stop in the middle of writing the file
+        write_bytes(self, bytes(data)[: len(data) // 2])
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(torch, "save", broken_save)
+    monkeypatch.setattr(Path, "write_bytes", broken_write)
     with pytest.raises(KeyboardInterrupt):
         save_checkpoint(path, {"frames": 2})
     monkeypatch.undo()
@@ -780,3 +782,35 @@ def test_eval_is_reproducible_and_held_out(tmp_path, capsys, monkeypatch):
     train_env.reset(), eval_env.reset()
     assert (train_env.episode_seeds % 2 == 0).all() and (eval_env.episode_seeds % 2 == 1).all()
     train_env.close(), eval_env.close()
+
+
+def test_a_diverged_run_ends_with_one_line_and_keeps_its_checkpoint(tmp_path):
+    """Learning that blows up (NaN or infinite logits) ends the run with the documented one-line error, status 1."""
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "activeperc_rl.cli", "--lr", "1e10", "--num-envs", "2", "--frames", "20000",
+         "--eval-episodes", "0", "--out", str(out), "--no-progress"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "activeperc-train: error: training failed at iteration" in done.stderr
+    assert "is kept in" in done.stderr and (out / "checkpoint.pt").is_file()
+
+
+def test_a_full_disk_ends_with_one_line_naming_the_file(tmp_path):
+    """torch's writer raises a RuntimeError of its own when a write fails; the checkpoint is written with Python's
+    file I/O instead, so a full disk (here: a file-size limit) is the one-line OSError, status 1."""
+    import resource
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, 1_000_000))
+
+    done = subprocess.run(
+        [sys.executable, "-m", "activeperc_rl.cli", "--num-envs", "2", "--frames", "64", "--eval-episodes", "0",
+         "--out", str(tmp_path / "run"), "--no-progress"],
+        capture_output=True, text=True, timeout=300, preexec_fn=small_files,
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "checkpoint.pt" in done.stderr, done.stderr
+    assert done.stderr.count("\n") == 1, done.stderr
