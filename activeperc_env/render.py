@@ -116,8 +116,13 @@ class TiledRenderer:
         for view, tile in zip(views, tiles, strict=True):
             self._pose(qpos[view], mocap_pos[view])
             mujoco.mjv_updateScene(
-                self._model, self._data, self._eye_opt, None, self._eye,
-                mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+                self._model,
+                self._data,
+                self._eye_opt,
+                None,
+                self._eye,
+                mujoco.mjtCatBit.mjCAT_ALL,
+                self._scene,
             )
             row, col = divmod(int(tile), self.cols)
             rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
@@ -148,8 +153,13 @@ class TiledRenderer:
         """
         self._pose(qpos, mocap_pos)
         mujoco.mjv_updateScene(
-            self._model, self._data, self._map_opt, None, self._map,
-            mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+            self._model,
+            self._data,
+            self._map_opt,
+            None,
+            self._map,
+            mujoco.mjtCatBit.mjCAT_ALL,
+            self._scene,
         )
         self._add_view_cone(fov)
         self._add_heading()
@@ -206,7 +216,11 @@ class TiledRenderer:
             return
         geom = self._scene.geoms[self._scene.ngeom]
         mujoco.mjv_initGeom(
-            geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.zeros(9),
+            geom,
+            mujoco.mjtGeom.mjGEOM_LINE,
+            np.zeros(3),
+            np.zeros(3),
+            np.zeros(9),
             np.array([*rgb, 1.0], dtype=np.float32),
         )
         mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 3.0, start, end)

@@ -115,9 +115,7 @@ def profile(views: int, seed: int) -> dict:
             model.geom_group[boxes] = np.where(visible, groups[boxes], names.HIDDEN_GROUP)
             drawn.append(int(visible.sum()))
         marks.append(time.perf_counter())
-        mujoco.mjv_updateScene(
-            model, data, renderer._eye_opt, None, renderer._eye, mujoco.mjtCatBit.mjCAT_ALL, scene
-        )
+        mujoco.mjv_updateScene(model, data, renderer._eye_opt, None, renderer._eye, mujoco.mjtCatBit.mjCAT_ALL, scene)
         marks.append(time.perf_counter())
         mujoco.mjr_render(rect, scene, renderer._ctx)
         marks.append(time.perf_counter())
@@ -177,8 +175,11 @@ def main(argv: list[str] | None = None) -> dict:
     print(
         f"culling drew {result['boxes_drawn_when_culled']:.2f} of the {result['boxes']} boxes a view on average,"
         f" saved {saved:.1f} us a view in all, and gave "
-        + ("the same pixels in every view" if result["same_pixels"] else
-           f"DIFFERENT pixels (first in view {result['first_differing_view']})")
+        + (
+            "the same pixels in every view"
+            if result["same_pixels"]
+            else f"DIFFERENT pixels (first in view {result['first_differing_view']})"
+        )
     )
     if args.json:
         print(json.dumps(result))

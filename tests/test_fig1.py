@@ -260,8 +260,10 @@ def test_confidence_intervals(aggregate):
     assert mean == 2.0 and half == pytest.approx(4.303 / math.sqrt(3))
     assert math.isnan(aggregate.mean_ci([0.5])[1])
     assert aggregate.t95(12) == aggregate.T95[10]  # between rows: the larger, conservative value
-    curves = [{"frames": np.array([0.0, 10.0]), "v": np.array([0.0, 1.0])},
-              {"frames": np.array([5.0, 20.0]), "v": np.array([1.0, 1.0])}]
+    curves = [
+        {"frames": np.array([0.0, 10.0]), "v": np.array([0.0, 1.0])},
+        {"frames": np.array([5.0, 20.0]), "v": np.array([1.0, 1.0])},
+    ]
     grid, mean, half = aggregate.seed_band(curves, "v")
     assert grid[0] == 5.0 and grid[-1] == 10.0  # only where every seed has data
     assert mean[0] == pytest.approx(0.75) and mean[-1] == pytest.approx(1.0) and half[-1] == 0.0
@@ -321,8 +323,6 @@ def test_reproduction_doc_quotes_the_committed_results(aggregate):
         assert (FIG1 / "results" / "runs" / f"{row['method']}_fov{row['fov']}_seed{row['seed']}.csv").is_file()
     for figure in ("fig1_map.png", "fig1_obs.png", "fig1_curves.png"):
         assert (ROOT / "docs" / "figures" / figure).stat().st_size > 0
-
-
 
 
 def test_a_run_counts_as_finished_only_with_an_evaluation_of_its_last_frames(sweep, tmp_path):

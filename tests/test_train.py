@@ -211,7 +211,9 @@ def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row
 
 def test_a_metrics_log_with_a_bad_row_is_named(tmp_path):
     path = tmp_path / "metrics.csv"
-    path.write_text("frames,iteration,time_s,fps,success_rate,mean_return,episodes\n32,1,1,1,0,0,0\nx,2\n64,2,2,1,0,0,0\n")
+    path.write_text(
+        "frames,iteration,time_s,fps,success_rate,mean_return,episodes\n32,1,1,1,0,0,0\nx,2\n64,2,2,1,0,0,0\n"
+    )
     with pytest.raises(ValueError, match=r"metrics.csv', line 3: not a metrics row"):
         MetricsLog(path, keep_until=64)
     path.write_text("step,loss\n1,2\n")

@@ -48,8 +48,21 @@ RESULTS = HERE / "results"  # the committed results, whose table and figures are
 GRID_POINTS = 100
 FULL_WINDOW = 100  # curves start once this many training episodes have finished: metrics.csv averages the last 100
 # Two-sided 95 % critical values of Student's t by degrees of freedom (standard statistical tables).
-T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,
-       15: 2.131, 20: 2.086, 30: 2.042}
+T95 = {
+    1: 12.706,
+    2: 4.303,
+    3: 3.182,
+    4: 2.776,
+    5: 2.571,
+    6: 2.447,
+    7: 2.365,
+    8: 2.306,
+    9: 2.262,
+    10: 2.228,
+    15: 2.131,
+    20: 2.086,
+    30: 2.042,
+}
 
 
 def t95(dof: int) -> float:
@@ -123,7 +136,8 @@ def check_one_budget(rows: list[dict]) -> None:
             mixed.append(f"{method} at {fov} degrees: {budgets}")
     if mixed:
         raise ValueError(
-            "runs of different budgets would be averaged together: " + "; ".join(mixed)
+            "runs of different budgets would be averaged together: "
+            + "; ".join(mixed)
             + ". Give each budget its own folder (sweep.py --results DIR, then aggregate.py --results DIR)"
         )
 
@@ -230,8 +244,10 @@ def main(argv: list[str] | None = None) -> int:
         "--figures", type=Path, help="where the figure goes (default: docs/figures for fig1/results, else --results)"
     )
     parser.add_argument(
-        "--doc", type=Path, help="the document whose table is updated (default: docs/reproduction.md for "
-        "fig1/results; for another --results none, the table is only printed)"
+        "--doc",
+        type=Path,
+        help="the document whose table is updated (default: docs/reproduction.md for "
+        "fig1/results; for another --results none, the table is only printed)",
     )
     args = parser.parse_args(argv)
     committed = args.results.resolve() == RESULTS.resolve()

@@ -157,13 +157,10 @@ def is_finished(run_dir: Path, frames: int, eval_episodes: int) -> bool:
         evaluated = int(evaluation["frames"])
         episodes = evaluation["learned"]["episodes"]
     except (ValueError, KeyError, TypeError) as error:
-        raise ValueError(f"{path} is not an evaluation activeperc-train wrote ({error!r}): delete it to evaluate the "
-                         "run again") from None
-    return (
-        evaluated >= frames
-        and evaluated == last_logged_frames(run_dir)
-        and episodes == eval_episodes
-    )
+        raise ValueError(
+            f"{path} is not an evaluation activeperc-train wrote ({error!r}): delete it to evaluate the run again"
+        ) from None
+    return evaluated >= frames and evaluated == last_logged_frames(run_dir) and episodes == eval_episodes
 
 
 def continued_past(run_dir: Path, frames: int) -> int | None:
@@ -190,8 +187,11 @@ def check_settings(results: Path, settings: dict, write: bool) -> None:
             pinned = json.loads(path.read_text())
         except ValueError as error:
             raise ValueError(f"{path} is damaged ({error}); it holds the settings of the folder's rows") from None
-        differ = [f"{key} {pinned.get(key)!r} there, {value!r} here" for key, value in settings.items()
-                  if pinned.get(key) != value]
+        differ = [
+            f"{key} {pinned.get(key)!r} there, {value!r} here"
+            for key, value in settings.items()
+            if pinned.get(key) != value
+        ]
         if differ:
             raise ValueError(
                 f"{results} holds results of other settings ({'; '.join(differ)}): give these runs a --results "
@@ -349,16 +349,22 @@ def run_sweep(
         budget = continued_past(task.run_dir(runs), frames)
         if budget is not None:
             elsewhere.append(task)
-            print(f"sweep: skip {task.label}: its run directory was continued to {budget} frames, so it no longer "
-                  f"holds the run of {frames} (a budget's runs need their own --runs)", flush=True)
+            print(
+                f"sweep: skip {task.label}: its run directory was continued to {budget} frames, so it no longer "
+                f"holds the run of {frames} (a budget's runs need their own --runs)",
+                flush=True,
+            )
         elif is_finished(task.run_dir(runs), frames, eval_episodes):
             done_rows.append(export_run(task, task.run_dir(runs), results))
         else:
             pending.append(task)
     if done_rows:
         merge_summary(summary, done_rows)
-    print(f"sweep: {len(tasks)} runs of {frames} frames: {len(done_rows)} done, {len(pending)} to run "
-          f"({len(groups)} at a time)", flush=True)
+    print(
+        f"sweep: {len(tasks)} runs of {frames} frames: {len(done_rows)} done, {len(pending)} to run "
+        f"({len(groups)} at a time)",
+        flush=True,
+    )
     running: dict[int, tuple[subprocess.Popen, Task, float]] = {}
     free = list(range(len(groups)))
     failed = []
@@ -379,15 +385,19 @@ def run_sweep(
                 if process.returncode == 0 and is_finished(run_dir, frames, eval_episodes):
                     row = export_run(task, run_dir, results)
                     merge_summary(summary, [row])
-                    print(f"sweep: done {task.label} in {minutes:.1f} min: success {row['final_success_rate']} "
-                          f"(random {row['random_success_rate']})", flush=True)
+                    print(
+                        f"sweep: done {task.label} in {minutes:.1f} min: success {row['final_success_rate']} "
+                        f"(random {row['random_success_rate']})",
+                        flush=True,
+                    )
                 else:
                     failed.append(task)
-                    print(f"sweep: FAILED {task.label} (exit {process.returncode}); see {run_dir / 'train.log'}",
-                          flush=True)
+                    print(
+                        f"sweep: FAILED {task.label} (exit {process.returncode}); see {run_dir / 'train.log'}",
+                        flush=True,
+                    )
     except KeyboardInterrupt:
-        print("\nsweep: Ctrl-C: every run saves its checkpoint and stops; run the same command to continue",
-              flush=True)
+        print("\nsweep: Ctrl-C: every run saves its checkpoint and stops; run the same command to continue", flush=True)
         _stop([process for process, _, _ in running.values()])
         return 130
     except Exception:  # a results file it cannot update, say: no run is left going unwatched
@@ -434,9 +444,7 @@ def _start(task: Task, runs: Path, frames: int, eval_episodes: int, cpus, extra)
     log.write(f"$ {' '.join(command)}\n")
     log.flush()
     pin = (lambda: os.sched_setaffinity(0, cpus)) if cpus else None
-    process = subprocess.Popen(
-        command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=pin
-    )
+    process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=pin)
     log.close()
     return process
 
@@ -469,8 +477,11 @@ def main(argv: list[str] | None = None) -> int:
         configs = find_configs(args.ablations, args.only)
         groups = core_groups(args.jobs, args.cores_per_job)
         if groups[0] is None and args.cores_per_job > 1:
-            print(f"sweep: {len(groups)} runs of {args.cores_per_job} cores do not fit this machine's CPUs: "
-                  "the runs are not pinned", flush=True)
+            print(
+                f"sweep: {len(groups)} runs of {args.cores_per_job} cores do not fit this machine's CPUs: "
+                "the runs are not pinned",
+                flush=True,
+            )
         tasks = [Task(config, seed) for seed in args.seeds for config in configs]
         summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
         settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "options": extra}
