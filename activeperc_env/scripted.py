@@ -68,7 +68,7 @@ class _Policy:
     """What every scripted policy shares: batched or single observations, per-room memory and random streams (room
     ``i`` draws from ``SeedSequence(seed, spawn_key=(i,))``, so a room acts alike whatever rooms play beside it)."""
 
-    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int | None = None):
+    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int = 0):
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs
         self._rngs = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,))) for i in range(num_envs)]
@@ -112,7 +112,7 @@ class VisionMover(_Policy):
     memory: it never undoes its last turn at once (the readings flicker as the rays sweep over a box's edge).
     """
 
-    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int | None = None):
+    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int = 0):
         super().__init__(config, num_envs, seed)
         if not self.config.range_rays:
             raise ValueError("VisionMover reads the range sensor: give the room range_rays > 0")
@@ -181,7 +181,7 @@ class OracleMover(_Policy):
 
     CELL = 0.05
 
-    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int | None = None):
+    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int = 0):
         super().__init__(config, num_envs, seed)
         c = self.CELL
         self.xs = np.arange(-names.ROOM_HALF_X + c / 2, names.ROOM_HALF_X, c)
@@ -276,7 +276,7 @@ class ScanLooker(_Policy):
     """Sweeps the camera from one pan limit to the other until the goal is in view, then keeps it within half a pan
     step of the view's centre; when it loses the goal it sweeps on toward where it last saw it."""
 
-    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int | None = None):
+    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, seed: int = 0):
         super().__init__(config, num_envs, seed)
         self.direction = np.ones(num_envs)  # +1 sweeps left, -1 right
 

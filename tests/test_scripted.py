@@ -75,20 +75,38 @@ def test_the_scan_looker_sweeps_from_limit_to_limit_until_it_sees_the_goal():
 
 
 def test_scripted_policies_drive_the_pettingzoo_env():
-    """One observation gives one int: the vision mover and the scan looker play the AEC env as it is."""
+    """One observation gives one int: the vision mover and the scan looker play the AEC env as it is, and the
+    episode is the one :func:`scripted.play` plays in the core with the same seeds."""
     env = activeperc_env.env()
-    policies = {MOVER: scripted.VisionMover(env.unwrapped.config), LOOKER: scripted.ScanLooker(env.unwrapped.config)}
+    config = env.unwrapped.config
+    policies = {MOVER: scripted.VisionMover(config, seed=0), LOOKER: scripted.ScanLooker(config, seed=1)}
     env.reset(seed=1)
-    total = 0.0
+    moves, success = 0, False
     for agent in env.agent_iter():
-        observation, reward, terminated, truncated, _ = env.last()
-        total += reward if agent == MOVER else 0.0
+        observation, _, terminated, truncated, _ = env.last()
+        success |= agent == MOVER and terminated
         action = None if terminated or truncated else policies[agent].act(observation)
         assert action is None or isinstance(action, int)
+        moves += agent == MOVER and action is not None
         env.step(action)
     env.close()
-    outcome = scripted.play(EnvConfig(), "vision", "scan", [1])  # the same layout and policies in the core
-    assert (total > 0) == bool(outcome.success[0])
+    outcome = scripted.play(EnvConfig(), "vision", "scan", [1], seed=0)
+    assert (success, moves) == (bool(outcome.success[0]), int(outcome.cycles[0]))
+
+
+def test_a_policy_without_a_seed_acts_alike_every_time():
+    """The policies' own randomness is seeded, with 0 unless told: unseeded random movers draw the same moves."""
+    observation = {"pan": np.zeros((8, 1), dtype=np.float32)}
+
+    def moves(mover):
+        return [mover.act(observation).tolist() for _ in range(3)]
+
+    unseeded, zero, one = (
+        moves(scripted.RandomMover(num_envs=8)),
+        moves(scripted.RandomMover(num_envs=8, seed=0)),
+        moves(scripted.RandomMover(num_envs=8, seed=1)),
+    )
+    assert unseeded == zero != one
 
 
 def test_bad_names_and_a_room_without_range_are_refused():
