@@ -20,6 +20,7 @@ from activeperc_env import EnvConfig
 from activeperc_env.arguments import ArgumentParser, add_config_flags
 from activeperc_env.config import LOOKER_REWARDS
 from activeperc_env.names import VERSIONS
+from activeperc_rl import portable
 from activeperc_rl.checkpoint import CHECKPOINT
 from activeperc_rl.config import (
     DEVICES,
@@ -114,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
         with stop_raises_interrupt():
             config = config_from_args(args)
+            if config.portable and not portable.is_pinned() and argv is None:
+                portable.restart_pinned("activeperc-train")  # the same command, with torch's kernels pinned
             if warning := unused_options_warning(args, config):
                 print(warning, file=sys.stderr)
             if out is None:

@@ -71,6 +71,9 @@ class TrainConfig:
     from 725 to 507 ms (docs/training.md). The thread count may change float rounding in the updates, so a CPU
     run repeats exactly with the same learner_threads (with the default networks, 1 and 2 threads gave the same
     runs in our checks)."""
+    portable: bool = False
+    """Pin torch's CPU kernels to AVX2 (activeperc_rl/portable.py), so that the same config and seed train the same
+    run on any x86-64 CPU with AVX2, not only on the same kind of CPU; it costs speed (docs/training.md)."""
     collect_workers: int = 0
     """Worker processes that step each environment's rooms (0: this process steps them). With k > 0, each
     environment (E1 and E2 each) splits its num_envs rooms over k processes that collect at once, each with CPU
@@ -167,6 +170,7 @@ class TrainConfig:
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
             "torch_threads": (_int_in(self.torch_threads, 0, 4096), "an int in 0 .. 4096"),
             "learner_threads": (_int_in(self.learner_threads, 0, 4096), "an int in 0 .. 4096"),
+            "portable": (isinstance(self.portable, bool), "true or false"),
             "collect_workers": (
                 is_int(self.collect_workers) and is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
                 f"an int in 0 .. num_envs ({self.num_envs})",

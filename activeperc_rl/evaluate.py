@@ -22,6 +22,7 @@ from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.config import is_int
 from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
+from activeperc_rl import portable
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
 from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
@@ -184,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
             device = resolve_device(args.device)
             config, mover_policy, looker = load_policy(args.run, device)
+            if config.portable and not portable.is_pinned() and argv is None:
+                portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too
             if args.random:
                 mover_policy, looker = None, None
             result = evaluate(
@@ -199,7 +202,11 @@ def main(argv: list[str] | None = None) -> int:
         unwritten = f"; {args.video!r} not written" if args.video else ""
         print(f"\nactiveperc-eval: interrupted{unwritten}", file=sys.stderr)
         return 130
-    result = {"policy": "random" if args.random else config.method, **result}
+    result = {
+        "policy": "random" if args.random else config.method,
+        **result,
+        "torch_cpu_capability": portable.cpu_capability(),
+    }
     if args.json:
         print(json.dumps(result))
     else:
@@ -208,3 +215,7 @@ def main(argv: list[str] | None = None) -> int:
             f"over {result['episodes']} held-out episodes (seed {args.seed})"
         )
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -29,6 +29,7 @@ import torch
 from tqdm import tqdm
 
 from activeperc_env.config import is_int
+from activeperc_rl import portable
 from activeperc_rl.allocator import keep_freed_memory
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import (
@@ -67,6 +68,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         ``"eval"``: ``{"learned": ..., "random": ...}`` as :func:`~activeperc_rl.evaluate.evaluate` gives them.
     """
     out = Path(out)
+    if config.portable:
+        portable.require_pinned()
     if resume and not (out / CHECKPOINT).is_file():  # checked before claiming, which would create the directory
         raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
     device = resolve_device(config.device)
@@ -236,7 +239,11 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
             "learned": evaluate(config, mover_policy, looker, **held_out),
             "random": evaluate(config, None, None, **held_out),
         }
-        _write_json(out / EVAL, result["eval"] | {"frames": frames, "eval_seed": config.seed})
+        _write_json(
+            out / EVAL,
+            result["eval"]
+            | {"frames": frames, "eval_seed": config.seed, "torch_cpu_capability": portable.cpu_capability()},
+        )
         for name, values in result["eval"].items():
             print(
                 f"{name:>8}: success rate {values['success_rate']:.3f}, mean return {values['mean_return']:.3f} "

@@ -1,15 +1,19 @@
-"""Golden traces of the environment: digests of what seeded rooms give under fixed actions, through the core, the
-PettingZoo parallel env and the TorchRL env, for every room version.
+"""Golden traces: digests of what seeded rooms give under fixed actions, through the core, the PettingZoo parallel
+env and the TorchRL env, for every room version; and of the first frames of training in portable mode.
 
-``python tests/golden.py`` writes ``tests/golden/traces.json``; ``tests/test_golden.py`` checks that this machine
-gives the same. Write it again only for a change that is meant to change episodes (a new room version is a new
-entry; v0's were written before v1 existed and must never change).
+``python tests/golden.py`` writes the environment's, ``tests/golden/traces.json`` (``python tests/golden.py 1``:
+room v1's only), and ``python tests/golden.py training`` training's, ``tests/golden/training.json``;
+``tests/test_golden.py`` checks that this machine gives the same. Write them again only for a change that is meant
+to change episodes or training (a new room version is a new entry; v0's were written before v1 existed and must
+never change).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -17,8 +21,14 @@ import numpy as np
 
 import activeperc_env
 from activeperc_env import EnvConfig, Simulator
+from activeperc_rl import portable
 
 TRACES = Path(__file__).resolve().parent / "golden" / "traces.json"
+TRAINING = TRACES.with_name("training.json")
+TRAINING_METHODS = ("meta", "fixed_forward")
+# a few iterations on seed 0, thread counts fixed (they may change rounding), no evaluation
+TRAINING_FLAGS = ("--portable", "--frames", "3072", "--learner-threads", "2", "--torch-threads", "1")
+TRAINING_FLAGS += ("--eval-episodes", "0", "--no-progress")
 SEEDS = (3, 17, 2024)
 CYCLES = 40
 
@@ -103,15 +113,50 @@ def traces(version: int) -> dict:
     return {"core": core_trace(version), "parallel_env": parallel_env_trace(version), "torchrl": torchrl_trace(version)}
 
 
+def train_portable(method: str, out: Path) -> subprocess.CompletedProcess:
+    """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
+    environment leaves torch's kernels unpinned, so that the command pins them itself."""
+    environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
+    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, *TRAINING_FLAGS, "--out", str(out)]
+    return subprocess.run(command, env=environment, capture_output=True, text=True, check=True)
+
+
+def training_trace(out: Path) -> dict:
+    """One digest a row of the metrics of the run in ``out`` (its timings left out) and one of the networks and
+    optimizers it saved."""
+    import csv
+
+    import torch
+
+    with open(out / "metrics.csv", newline="") as file:
+        rows = [
+            digest(np.array([value for key, value in row.items() if key not in ("time_s", "fps")]))
+            for row in csv.DictReader(file)
+        ]
+    state = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+    return {"metrics": rows, "weights": portable.state_digest(state["method"])}
+
+
 def main() -> None:
-    """Write the traces of the versions named on the command line (all when none) into :data:`TRACES`."""
-    versions = [int(v) for v in sys.argv[1:]] or list(activeperc_env.names.VERSIONS)
-    stored = json.loads(TRACES.read_text()) if TRACES.exists() else {}
-    for version in versions:
-        stored[f"v{version}"] = traces(version)
-    TRACES.parent.mkdir(exist_ok=True)
-    TRACES.write_text(json.dumps(stored, indent=1) + "\n")
-    print(f"wrote {TRACES} ({', '.join(sorted(stored))})")
+    """Write the traces named on the command line: room versions (all when none) into :data:`TRACES`, or
+    ``training`` into :data:`TRAINING`."""
+    import tempfile
+
+    if sys.argv[1:] == ["training"]:
+        with tempfile.TemporaryDirectory() as folder:
+            for method in TRAINING_METHODS:
+                train_portable(method, Path(folder) / method)
+            stored = {method: training_trace(Path(folder) / method) for method in TRAINING_METHODS}
+        path = TRAINING
+    else:
+        versions = [int(v) for v in sys.argv[1:]] or list(activeperc_env.names.VERSIONS)
+        stored = json.loads(TRACES.read_text()) if TRACES.exists() else {}
+        for version in versions:
+            stored[f"v{version}"] = traces(version)
+        path = TRACES
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(json.dumps(stored, indent=1) + "\n")
+    print(f"wrote {path} ({', '.join(sorted(stored))})")
 
 
 if __name__ == "__main__":

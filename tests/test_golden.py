@@ -1,4 +1,5 @@
-"""Every room version gives the episodes it always gave: golden traces through the core, PettingZoo and TorchRL.
+"""Every room version gives the episodes it always gave: golden traces through the core, PettingZoo and TorchRL;
+and training in portable mode gives the run it always gave.
 
 The committed digests (``tests/golden/traces.json``, written by ``python tests/golden.py``) cover the views, the
 physics state, the range readings, rewards and ends of seeded rooms under fixed actions. v0's were written by the
@@ -7,11 +8,24 @@ differs: a MuJoCo, Mesa or numpy upgrade, or a change of ours, made the same see
 """
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
-from golden import TRACES, core_trace, parallel_env_trace, torchrl_trace
+from golden import (
+    TRACES,
+    TRAINING,
+    TRAINING_METHODS,
+    core_trace,
+    parallel_env_trace,
+    torchrl_trace,
+    train_portable,
+    training_trace,
+)
 
 from activeperc_env.names import VERSIONS
+from activeperc_rl import portable
 
 STORED = json.loads(TRACES.read_text())
 
@@ -40,3 +54,39 @@ def test_pettingzoo_gives_the_stored_episodes(version):
 def test_torchrl_env_gives_the_stored_episodes(version):
     ours, stored = torchrl_trace(version), STORED[f"v{version}"]["torchrl"]
     assert ours == stored, f"v{version}: first difference at {first_difference(ours, stored)}"
+
+
+TRAINED = json.loads(TRAINING.read_text())
+needs_avx2 = pytest.mark.skipif(
+    portable.cpu_capability() not in ("AVX2", "AVX512"), reason="portable mode pins torch's kernels to AVX2"
+)
+
+
+@pytest.fixture(scope="module")
+def portable_runs(tmp_path_factory) -> dict[str, Path]:
+    """The run directory of ``activeperc-train --portable`` of each method of the golden training trace."""
+    folder = tmp_path_factory.mktemp("portable")
+    for method in TRAINING_METHODS:
+        train_portable(method, folder / method)
+    return {method: folder / method for method in TRAINING_METHODS}
+
+
+@needs_avx2
+@pytest.mark.parametrize("method", TRAINING_METHODS)
+def test_portable_training_gives_the_stored_run(portable_runs, method):
+    """The first iterations of seed 0 in portable mode: the same metrics and, bit for bit, the same networks and
+    optimizers as the committed run (made on an Intel Xeon with AVX-512: an unpinned run there saves other
+    weights within these frames)."""
+    ours, stored = training_trace(portable_runs[method]), TRAINED[method]
+    assert ours["metrics"] == stored["metrics"], (
+        f"first difference at {first_difference(ours['metrics'], stored['metrics'])}"
+    )
+    assert ours["weights"] == stored["weights"]
+
+
+@needs_avx2
+def test_a_portable_run_is_evaluated_with_pinned_kernels(portable_runs):
+    """activeperc-eval on a portable run restarts itself pinned, and its JSON says which kernels it used."""
+    command = [sys.executable, "-m", "activeperc_rl.evaluate", str(portable_runs["meta"]), "--episodes", "2", "--json"]
+    result = json.loads(subprocess.run(command, capture_output=True, text=True, check=True).stdout)
+    assert result["torch_cpu_capability"] == "AVX2" and result["episodes"] == 2

@@ -1,0 +1,53 @@
+"""Portable mode's guards: it must start before torch does, and it says so where it cannot (the runs it gives are
+checked against committed digests in test_golden.py)."""
+
+import pytest
+import torch
+
+from activeperc_rl import cli, portable
+from activeperc_rl.config import TrainConfig
+from activeperc_rl.train import train
+
+
+@pytest.fixture
+def unpinned(monkeypatch):
+    """This process as one started without the pinning variables."""
+    for name in portable.PINNED_ENVIRONMENT:
+        monkeypatch.delenv(name, raising=False)
+
+
+def test_portable_must_be_a_bool():
+    with pytest.raises(ValueError, match="portable"):
+        TrainConfig(portable="yes")
+
+
+def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
+    """train() cannot pin torch's kernels once torch runs: it names the variables, and writes nothing."""
+    with pytest.raises(ValueError, match="ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2"):
+        train(TrainConfig(portable=True, frames=256), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_the_cli_called_in_process_names_the_problem(unpinned, tmp_path, capsys):
+    """main(argv) inside another program does not replace that program's process: it refuses with status 2."""
+    assert cli.main(["--portable", "--frames", "256", "--out", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "portable=True needs torch's CPU kernels capped at AVX2" in capsys.readouterr().err
+
+
+def test_no_second_restart_when_the_variables_did_not_pin(monkeypatch):
+    """A process started with the variables that still runs other kernels is an error, not a restart loop."""
+    for name, value in portable.PINNED_ENVIRONMENT.items():
+        monkeypatch.setenv(name, value)
+    with pytest.raises(ValueError, match="are set and torch still uses"):
+        portable.restart_pinned("activeperc-train")
+
+
+def test_the_digest_of_a_state_sees_every_bit():
+    def state():
+        return {"modules": {"actor": {"weight": torch.ones(3, 2)}}, "optimizers": {"step": 4}}
+
+    flipped = state()
+    flipped["modules"]["actor"]["weight"][1, 1] = torch.nextafter(torch.tensor(1.0), torch.tensor(2.0))
+    assert portable.state_digest(state()) == portable.state_digest(state())
+    assert portable.state_digest(state()) != portable.state_digest(flipped)
+    assert portable.state_digest(state()) != portable.state_digest(state() | {"optimizers": {"step": 5}})
