@@ -286,3 +286,24 @@ def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
     assert 0 < result["boxes_drawn_when_culled"] < 8
     parts = ("context", "pose", "scene", "draw", "read")
     assert all(result[mode][part] > 0 for mode in ("whole", "culled") for part in parts)
+
+
+def table_lines(text: str) -> list[str]:
+    return [line for line in text.splitlines() if line.startswith("|")]
+
+
+def test_portable_speed_trains_each_mode_and_the_pinned_ones_agree(capsys):
+    """Every mode trains; capping oneDNN alone and --portable save the same networks (docs/training.md)."""
+    load_script("portable_speed").main(["--method", "fixed_forward", "--frames", "512", "--rounds", "1"])
+    rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
+    assert set(rows) >= {"default", "onednn", "portable"}
+    assert rows["onednn"] == rows["portable"]
+
+
+def test_training_md_shows_the_committed_portable_speed_table():
+    """docs/training.md's table is the one benchmarks/results/cpu2/portable_speed.txt holds (regenerate both)."""
+    root = SCRIPT.parents[1]
+    text = (root / "docs" / "training.md").read_text()
+    block = text.split("<!-- portable: begin -->")[1].split("<!-- portable: end -->")[0]
+    committed = (root / "benchmarks" / "results" / "cpu2" / "portable_speed.txt").read_text()
+    assert table_lines(block) == table_lines(committed) and table_lines(block)

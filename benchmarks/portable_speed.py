@@ -1,0 +1,86 @@
+"""What portable mode costs: training frames/s with torch's CPU kernels as torch picks them and capped at AVX2.
+
+Each mode trains the same run (``activeperc-train``, seed 0, ``--method``, ``--frames``, no evaluation) in a fresh
+process, in ``--rounds`` rounds of every mode in turn, because the machine's speed drifts over minutes:
+
+- ``default``: torch's own choice (AVX-512 on a CPU that has it);
+- ``onednn``: ``ONEDNN_MAX_CPU_ISA=AVX2`` only (the convolutions' library);
+- ``portable``: ``--portable``, both variables of :data:`activeperc_rl.portable.PINNED_ENVIRONMENT`.
+
+A mode's frames/s is of its iterations after the first (which builds the networks and warms the renderer). The
+report gives every round's frames/s, the median ratio of each mode to ``default`` within a round, and a digest of
+each run's saved networks and optimizers: the runs of one mode agree, and a mode whose digest is another mode's
+trained bit for bit the same run. Run it from the repository root::
+
+    python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (about 10 minutes)
+    python benchmarks/portable_speed.py --method fixed_forward --frames 10000 --rounds 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
+
+MODES = {  # name: (extra environment, extra flags)
+    "default": ({}, ()),
+    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, ()),
+    "portable": ({}, ("--portable",)),
+}
+
+
+def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
+    """Train in ``mode`` into ``out``: (frames/s after the first iteration, digest of the saved networks)."""
+    import torch
+
+    extra, flags = MODES[mode]
+    environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | extra
+    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, "--frames", str(frames), *flags]
+    command += ["--eval-episodes", "0", "--no-progress", "--out", str(out)]
+    subprocess.run(command, env=environment, check=True, capture_output=True, text=True)
+    with open(out / "metrics.csv", newline="") as file:
+        rows = list(csv.DictReader(file))
+    first, last = rows[0], rows[-1]
+    rate = (int(last["frames"]) - int(first["frames"])) / (float(last["time_s"]) - float(first["time_s"]))
+    state = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
+    return rate, state_digest(state["method"])
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--method", default="meta", help="method to train (meta)")
+    parser.add_argument("--frames", type=int, default=20_000, help="frames per run (20000)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of every mode (3)")
+    args = parser.parse_args(argv)
+    import torch
+
+    print(
+        f"# {machine()} (torch's own kernels), {os.cpu_count()} CPUs, torch {torch.__version__}, "
+        f"{time.strftime('%Y-%m-%d')}; {args.method}, {args.frames} frames"
+    )
+    rates = {mode: [] for mode in MODES}
+    digests = {mode: set() for mode in MODES}
+    with tempfile.TemporaryDirectory() as folder:
+        for round_ in range(args.rounds):
+            for mode in MODES:
+                rate, digest = train(mode, args.method, args.frames, Path(folder) / f"{mode}{round_}")
+                rates[mode].append(rate)
+                digests[mode].add(digest)
+            print(f"round {round_ + 1}: " + ", ".join(f"{mode} {rates[mode][-1]:,.0f}" for mode in MODES) + " frames/s")
+    print("| mode | frames/s (median) | x default (median of rounds) | networks' digest |")
+    print("| --- | --- | --- | --- |")
+    for mode in MODES:
+        ratio = statistics.median(r / d for r, d in zip(rates[mode], rates["default"], strict=True))
+        print(f"| {mode} | {statistics.median(rates[mode]):,.0f} | {ratio:.2f} | {', '.join(sorted(digests[mode]))} |")
+
+
+if __name__ == "__main__":
+    main()
