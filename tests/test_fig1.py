@@ -2,6 +2,7 @@
 
 import csv
 import importlib
+import json
 import math
 import os
 import signal
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 from conftest import PseudoTerminal, default_stop_signals
 
+from activeperc_rl import portable
 from activeperc_rl.config import TrainConfig, load_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -91,6 +93,7 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
     assert sweep.main([*base, "--frames", "64", *TINY]) == 0
     assert [signal.getsignal(number) for number in (signal.SIGTERM, signal.SIGHUP)] == handlers  # restored
     assert "# removed config.yaml" in (killed_at_start / "train.log").read_text()
+    assert json.loads((results / "sweep.json").read_text())["machines"] == [portable.machine()]
     rows = read_csv(results / "summary.csv")
     assert list(rows[0]) == list(sweep.SUMMARY_COLUMNS)
     keys = [(r["method"], r["fov"], r["seed"]) for r in rows]

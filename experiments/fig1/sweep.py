@@ -14,7 +14,8 @@ Resumable: run the same command again and finished runs are skipped, interrupted
 their checkpoint, and a larger ``--frames`` with a new ``--results`` folder continues finished runs to the new
 budget. A run counts as finished when its ``eval.json`` is of its last logged frames (not of an earlier budget
 it was continued from), of ``--frames`` or more, over ``--eval-episodes`` episodes. A results folder holds one
-budget: its ``sweep.json`` pins ``--frames``, ``--eval-episodes`` and the options after ``--``, and a sweep with
+budget: its ``sweep.json`` pins ``--frames``, ``--eval-episodes`` and the options after ``--`` (and lists the CPUs
+that ran it: outside ``--portable``, runs repeat on the same kind of CPU only), and a sweep with
 others is refused (so the committed pilot's rows are never replaced by another budget's, nor averaged with runs
 of other options); a run directory continued to a larger budget is skipped by a sweep of a smaller one (its
 runs of that budget are gone). Ctrl-C stops every run cleanly (each saves its checkpoint first; a second Ctrl-C
@@ -57,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from activeperc_env.core import MAX_SEED, usable_cpus
+from activeperc_rl import portable
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS, load_checkpoint
 from activeperc_rl.config import load_yaml
@@ -199,6 +201,17 @@ def check_settings(results: Path, settings: dict, write: bool) -> None:
             )
     elif write:
         results.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as temporary:
+            temporary.write_text(json.dumps(settings, indent=2) + "\n")
+
+
+def record_machine(results: Path) -> None:
+    """Add this machine (:func:`~activeperc_rl.portable.machine`) to the ``machines`` that made the folder's rows,
+    in its :data:`SETTINGS` file: runs outside portable mode repeat on the same kind of CPU only."""
+    path = results / SETTINGS
+    settings = json.loads(path.read_text())
+    if portable.machine() not in settings.setdefault("machines", []):
+        settings["machines"].append(portable.machine())
         with atomic_path(path) as temporary:
             temporary.write_text(json.dumps(settings, indent=2) + "\n")
 
@@ -487,6 +500,8 @@ def main(argv: list[str] | None = None) -> int:
         settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "options": extra}
         read_summary(summary)  # a damaged file is named now, not when the first run has finished
         check_settings(args.results, settings, write=not args.dry_run)
+        if not args.dry_run:
+            record_machine(args.results)
         if args.dry_run:
             for task in tasks:
                 run_dir = task.run_dir(args.runs)
