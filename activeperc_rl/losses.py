@@ -179,8 +179,8 @@ class MetaEvaluationLoss(LossModule):
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
-    of ``rho`` over steps; 1 without ``behaviour_epsilon``), ``meta_value``
-    (mean of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (the
+    of ``rho`` over steps; 1 without ``behaviour_epsilon``), ``meta_value`` and ``meta_value_std``
+    (mean and standard deviation of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (the
     trajectories of ``D2``) and ``num_reference_trajectories`` (``K``, those of ``D1``).
 
     The three modules are held as they are (not functionalised): ``loss.looker_actor`` is
@@ -280,6 +280,7 @@ class MetaEvaluationLoss(LossModule):
             "entropy",
             "importance_weight",
             "meta_value",
+            "meta_value_std",
             "baseline",
             "num_trajectories",
             "num_reference_trajectories",
@@ -398,6 +399,7 @@ class MetaEvaluationLoss(LossModule):
         out.set("entropy", entropy.detach().mean())
         out.set("importance_weight", rho.mean() if rho.numel() else torch.ones((), dtype=dtype, device=meta.device))
         out.set("meta_value", meta.mean())
+        out.set("meta_value_std", meta.std(correction=0))
         out.set("baseline", baseline.detach())
         out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
         out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))

@@ -71,6 +71,9 @@ class Method:
         device: where the networks run.
     """
 
+    LOGGED: dict[str, str] = {}
+    """The entries of :attr:`Iteration.losses` that ``metrics.csv`` holds too, and their columns there."""
+
     def __init__(self, config: TrainConfig, device: torch.device):
         self.config = config
         self.device = device
@@ -422,6 +425,16 @@ class Meta(_MoverA2C):
     6. copy w1 -> w2.
     """
 
+    LOGGED = {
+        "looker/meta_value": "meta_value",
+        "looker/meta_value_std": "meta_value_std",
+        "looker/baseline": "meta_baseline",
+        "looker/entropy": "looker_entropy",
+        "meta/e1_pan_rate": "e1_pan_rate",
+        "meta/e2_pan_rate": "e2_pan_rate",
+        "meta/e2_success_rate": "e2_success_rate",
+    }
+
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER).to(self.device)
@@ -471,7 +484,8 @@ class Meta(_MoverA2C):
             losses |= self._update_mover(d1)
         self.w2.load_state_dict(self.critic.state_dict())
         losses["meta/e2_success_rate"] = _success_rate(finished_returns(d2))
-        losses["meta/e1_pan_rate"] = float((d1.get(("next", LOOKER, "action")) != HOLD).float().mean())
+        losses["meta/e1_pan_rate"] = _pan_rate(d1)
+        losses["meta/e2_pan_rate"] = _pan_rate(d2)
         return Iteration(frames, returns, losses)
 
     def policy(self):
@@ -546,6 +560,11 @@ def looker_transitions(rollout: TensorDictBase) -> tuple[TensorDict, torch.Tenso
     )
     transitions = TensorDict({LOOKER: now, "next": following}, batch_size=now.batch_size)
     return transitions, ~done[..., :-1, 0]
+
+
+def _pan_rate(rollout: TensorDictBase) -> float:
+    """The fraction of the looks of a looker-mode rollout that turned the camera."""
+    return float((rollout.get(("next", LOOKER, "action")) != HOLD).float().mean())
 
 
 def _success_rate(returns: list[float]) -> float:

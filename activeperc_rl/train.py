@@ -36,6 +36,7 @@ from activeperc_rl.checkpoint import (
     CHECKPOINT,
     CONFIG,
     EVAL,
+    METRIC_COLUMNS,
     METRICS,
     MetricsLog,
     load_checkpoint,
@@ -170,7 +171,9 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                 for name in (CONFIG, CHECKPOINT):
                     (out / name).unlink(missing_ok=True)
                 raise
-        metrics = stack.enter_context(closing(MetricsLog(out / METRICS, keep_until=frames if resumed else None)))
+        columns = METRIC_COLUMNS + tuple(method.LOGGED.values())
+        log = MetricsLog(out / METRICS, keep_until=frames if resumed else None, columns=columns)
+        metrics = stack.enter_context(closing(log))
         from torch.utils.tensorboard import SummaryWriter
 
         # scalars are logged against frames: drop those written after the checkpoint
@@ -213,7 +216,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
                     "success_rate": round(success, 4),
                     "mean_return": round(mean_return, 4),
                     "episodes": len(step.returns),
-                }
+                } | {column: round(step.losses[key], 5) for key, column in method.LOGGED.items()}
                 metrics.append(row)
                 for key in ("fps", "success_rate", "mean_return"):
                     writer.add_scalar(f"train/{key}", row[key], frames)

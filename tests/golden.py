@@ -29,6 +29,7 @@ TRAINING_METHODS = ("meta", "fixed_forward")
 # a few iterations on seed 0, thread counts fixed (they may change rounding), no evaluation
 TRAINING_FLAGS = ("--portable", "--frames", "3072", "--learner-threads", "2", "--torch-threads", "1")
 TRAINING_FLAGS += ("--eval-episodes", "0", "--no-progress")
+TRAINING_COLUMNS = ("frames", "iteration", "success_rate", "mean_return", "episodes")  # metrics.csv's, less timings
 SEEDS = (3, 17, 2024)
 CYCLES = 40
 
@@ -122,17 +123,14 @@ def train_portable(method: str, out: Path) -> subprocess.CompletedProcess:
 
 
 def training_trace(out: Path) -> dict:
-    """One digest a row of the metrics of the run in ``out`` (its timings left out) and one of the networks and
-    optimizers it saved."""
+    """One digest a row of the run's ``metrics.csv`` in ``out`` (:data:`TRAINING_COLUMNS`) and one of the networks
+    and optimizers it saved."""
     import csv
 
     import torch
 
     with open(out / "metrics.csv", newline="") as file:
-        rows = [
-            digest(np.array([value for key, value in row.items() if key not in ("time_s", "fps")]))
-            for row in csv.DictReader(file)
-        ]
+        rows = [digest(np.array([row[key] for key in TRAINING_COLUMNS])) for row in csv.DictReader(file)]
     state = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
     return {"metrics": rows, "weights": portable.state_digest(state["method"])}
 

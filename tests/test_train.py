@@ -2,6 +2,7 @@
 
 import csv
 import json
+import math
 import os
 import re
 import signal
@@ -19,9 +20,10 @@ from conftest import PseudoTerminal, assert_same_run, default_stop_signals
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
-from activeperc_rl.checkpoint import MetricsLog, load_checkpoint, save_checkpoint
+from activeperc_rl.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
 from activeperc_rl.envs import make_env
+from activeperc_rl.methods import Meta
 from activeperc_rl.rundir import claim_run_dir, new_run_dir
 from activeperc_rl.signals import stop_signals
 
@@ -207,6 +209,34 @@ def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row
     frames = [int(r["frames"]) for r in rows]
     assert frames == sorted(set(frames)) and frames[-1] >= 128
     assert "999" not in [r["iteration"] for r in rows]  # the checkpoint's run goes on from 64 frames
+
+
+def test_meta_logs_its_meta_evaluator_and_looker_in_metrics_csv(tmp_path):
+    """metrics.csv says whether a meta run's looker learned: M's mean and spread, the baseline, phi2's entropy,
+    the pan rates of E1 and E2 and E2's success, one value per iteration."""
+    out = run_cli(tmp_path, "--frames", "200", "--eval-episodes", "0")
+    rows = read_metrics(out)
+    logged = list(Meta.LOGGED.values())
+    assert list(rows[0]) == [*METRIC_COLUMNS, *logged]
+    for row in rows:
+        values = {column: float(row[column]) for column in logged}  # e2_success_rate is nan without an episode
+        assert values["meta_value_std"] >= 0 and 0 <= values["e1_pan_rate"] <= 1 and 0 <= values["e2_pan_rate"] <= 1
+        assert 0 < values["looker_entropy"] <= math.log(3) + 1e-6
+    assert float(rows[0]["e2_pan_rate"]) > 0  # epsilon 0.3 pans at random in E2
+
+
+def test_a_resumed_run_keeps_the_rows_of_an_older_metrics_log(tmp_path):
+    """A run logged before the method's columns existed resumes: its rows stay, blank in the new columns."""
+    out = run_cli(tmp_path, "--frames", "100", "--eval-episodes", "0")
+    rows = read_metrics(out)
+    with open(out / "metrics.csv", "w", newline="") as f:  # as the older code wrote it
+        writer = csv.DictWriter(f, METRIC_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    assert cli.main(["--out", str(out), "--resume", "--frames", "200", "--no-progress"]) == 0
+    resumed = read_metrics(out)
+    assert [r["frames"] for r in resumed[: len(rows)]] == [r["frames"] for r in rows]
+    assert resumed[0]["meta_value"] == "" and resumed[-1]["meta_value"] != ""
 
 
 def test_a_metrics_log_with_a_bad_row_is_named(tmp_path):
