@@ -45,7 +45,7 @@ from activeperc_rl.checkpoint import (
 )
 from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
-from activeperc_rl.methods import make_method
+from activeperc_rl.methods import Iteration, make_method
 from activeperc_rl.rundir import check_fresh, claim_run_dir
 from activeperc_rl.signals import on_stop_signals
 from activeperc_rl.workers import WorkerError
@@ -97,163 +97,207 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
-    method = make_method(config, device, start=False)
-    frames, iteration, elapsed = 0, 0, 0.0
-    window = deque(maxlen=config.success_window)
-    resumed = state is not None
-    # an exact resume puts the rooms where the checkpoint left them; without their state (another number of
-    # collection workers, or a checkpoint from before it was saved) the rooms start new episodes from a stream of
-    # their own
-    exact = (
-        resumed
-        and state.get("collection") is not None
-        and "env_seed" in state
-        and state.get("collect_workers", 0) == config.collect_workers
-    )
-    if resumed:
-        restore_method(method, state, out / CHECKPOINT)
-        frames, iteration, elapsed = state["frames"], state["iteration"], state["time_s"]
-        window.extend(state["window"])
-        method.env_seed = state["env_seed"] if exact else _fresh_env_seed(config, frames)
-    saved = {"frames": frames}  # the frames of the checkpoint on disk
-
-    def collection_state() -> list | None:
-        try:
-            return method.collection_state()
-        except WorkerError:  # a worker died since the last iteration: the next one says so; save what we have
-            return None
-
-    def checkpoint() -> None:
-        save_checkpoint(
-            out / CHECKPOINT,
-            {
-                "method": method.state_dict(),
-                "config": config.to_dict(),
-                "frames": frames,
-                "iteration": iteration,
-                "time_s": elapsed,
-                "window": list(window),
-                "torch_rng": torch.get_rng_state(),
-                "env_seed": method.env_seed,
-                "collection": collection_state(),
-                "collect_workers": config.collect_workers,
-            },
-        )
-        saved["frames"] = frames
-
+    run = _Run(config, out, device, state)
     with ExitStack() as stack:
-        stack.callback(method.close)
-        method.start()
-        if exact:
+        stack.callback(run.method.close)
+        run.start()
+        log = _Log(stack, run, progress)
+        last_checkpoint = time.monotonic()
+        with _interruptible() as interrupted:
+            while run.frames < config.frames and not interrupted():
+                start = time.perf_counter()
+                step = run.iterate()
+                log.write(step, run.advance(step, time.perf_counter() - start))
+                if time.monotonic() - last_checkpoint >= config.checkpoint_every:
+                    run.checkpoint()
+                    last_checkpoint = time.monotonic()
+            run.checkpoint()
+            was_interrupted = interrupted()
+    result = {"frames": run.frames, "interrupted": was_interrupted, "metrics": str(out / METRICS)}
+    if was_interrupted:
+        print(f"interrupted at {run.frames} frames; checkpoint saved in {out}; continue with --resume --out {out}")
+        return result
+    if config.eval_episodes:
+        result["eval"] = run.evaluate(progress)
+    print(f"activeperc-train: done, {run.frames} frames; the run is in {out}", flush=True)
+    return result
+
+
+class _Run:
+    """One run in its claimed directory: the method, how far it has trained, and its checkpoint."""
+
+    def __init__(self, config: TrainConfig, out: Path, device: torch.device, state: dict | None):
+        self.config, self.out, self.device, self.state = config, out, device, state
+        self.method = make_method(config, device, start=False)
+        self.frames, self.iteration, self.elapsed = 0, 0, 0.0
+        self.window = deque(maxlen=config.success_window)
+        # an exact resume puts the rooms where the checkpoint left them; without their state (another number of
+        # collection workers, or a checkpoint from before it was saved) the rooms start new episodes from a
+        # stream of their own
+        self.exact = (
+            state is not None
+            and state.get("collection") is not None
+            and "env_seed" in state
+            and state.get("collect_workers", 0) == config.collect_workers
+        )
+        if state is not None:
+            restore_method(self.method, state, out / CHECKPOINT)
+            self.frames, self.iteration, self.elapsed = state["frames"], state["iteration"], state["time_s"]
+            self.window.extend(state["window"])
+            self.method.env_seed = state["env_seed"] if self.exact else _fresh_env_seed(config, self.frames)
+        self.saved_frames = self.frames  # the frames of the checkpoint on disk
+
+    def start(self) -> None:
+        """Build the collectors (the rooms where the checkpoint left them, on an exact resume) and write the run's
+        first files: a fresh run's checkpoint and config.yaml, a resumed run's config.yaml."""
+        config, out, state = self.config, self.out, self.state
+        self.method.start()
+        if self.exact:
             try:
-                method.load_collection_state(state["collection"])
+                self.method.load_collection_state(state["collection"])
             except ValueError as error:  # e.g. another MuJoCo whose state rows differ, or a damaged checkpoint
                 print(
                     f"activeperc-train: warning: the rooms' state in {out / CHECKPOINT} does not fit this run "
                     f"({error}); they start new episodes, so this resume is not the uninterrupted run",
                     file=sys.stderr,
                 )
-                method.close()
-                method.env_seed = _fresh_env_seed(config, frames)
-                method.start()
-        if resumed:
+                self.method.close()
+                self.method.env_seed = _fresh_env_seed(config, self.frames)
+                self.method.start()
+        if state is not None:
             torch.set_rng_state(state["torch_rng"])  # after start(), which may draw from it
         # nothing is written before the run has started; from then on the directory holds a checkpoint
-        if resumed:
+        if state is not None:
             save_yaml(config, out / CONFIG)
-            if frames < config.frames:
+            if self.frames < config.frames:
                 _retire_eval(out)
-        else:
-            try:  # the first checkpoint, then config.yaml: a run directory never holds a config without one
-                checkpoint()
-                save_yaml(config, out / CONFIG)
-            except BaseException:  # stopped (or failed) before it started: leave nothing of the run behind
-                for name in (CONFIG, CHECKPOINT):
-                    (out / name).unlink(missing_ok=True)
+            return
+        try:  # the first checkpoint, then config.yaml: a run directory never holds a config without one
+            self.checkpoint()
+            save_yaml(config, out / CONFIG)
+        except BaseException:  # stopped (or failed) before it started: leave nothing of the run behind
+            for name in (CONFIG, CHECKPOINT):
+                (out / name).unlink(missing_ok=True)
+            raise
+
+    def checkpoint(self) -> None:
+        """Save the networks, the optimizers, the counters, the random state and the rooms' state."""
+        try:
+            collection = self.method.collection_state()
+        except WorkerError:  # a worker died since the last iteration: the next one says so; save what we have
+            collection = None
+        save_checkpoint(
+            self.out / CHECKPOINT,
+            {
+                "method": self.method.state_dict(),
+                "config": self.config.to_dict(),
+                "frames": self.frames,
+                "iteration": self.iteration,
+                "time_s": self.elapsed,
+                "window": list(self.window),
+                "torch_rng": torch.get_rng_state(),
+                "env_seed": self.method.env_seed,
+                "collection": collection,
+                "collect_workers": self.config.collect_workers,
+            },
+        )
+        self.saved_frames = self.frames
+
+    def iterate(self) -> Iteration:
+        """One iteration of the method; a dead worker or diverged learning is an error naming what is kept."""
+        kept = f"the checkpoint at {self.saved_frames} frames is kept"
+        where = f"iteration {self.iteration + 1} ({self.frames} frames)"
+        try:
+            step = self.method.iterate()
+        except WorkerError as error:
+            raise WorkerError(f"{error}; {kept}: continue with --resume --out {self.out}") from None
+        except (ValueError, RuntimeError) as error:  # e.g. sampling from NaN logits: the learning diverged
+            broken = self.method.non_finite()
+            if not (isinstance(error, ValueError) or broken or _mentions_non_finite(error)):
                 raise
-        columns = METRIC_COLUMNS + tuple(method.LOGGED.values())
-        log = MetricsLog(out / METRICS, keep_until=frames if resumed else None, columns=columns)
-        metrics = stack.enter_context(closing(log))
-        from torch.utils.tensorboard import SummaryWriter
+            why = f"the weights of {broken} are not finite" if broken else " ".join(str(error).split())
+            raise TrainingError(f"training failed at {where}: {why}; {kept} in {self.out}") from error
+        if broken := self.method.non_finite():
+            raise TrainingError(
+                f"training diverged at {where}: the weights of {broken} are not finite; {kept} in {self.out}"
+            )
+        return step
 
-        # scalars are logged against frames: drop those written after the checkpoint
-        writer = stack.enter_context(SummaryWriter(str(out / "tb"), purge_step=frames + 1 if resumed else None))
-        bar = stack.enter_context(
-            tqdm(total=config.frames, initial=frames, unit="frame", disable=not progress, dynamic_ncols=True)
+    def advance(self, step: Iteration, seconds: float) -> dict:
+        """Count ``step`` (which took ``seconds``) in; its row of ``metrics.csv``."""
+        self.frames, self.iteration, self.elapsed = (
+            self.frames + step.frames,
+            self.iteration + 1,
+            self.elapsed + seconds,
         )
-        last_checkpoint = time.monotonic()
-        with _interruptible() as interrupted:
-            while frames < config.frames and not interrupted():
-                start = time.perf_counter()
-                kept = f"the checkpoint at {saved['frames']} frames is kept"
-                try:
-                    step = method.iterate()
-                except WorkerError as error:
-                    raise WorkerError(f"{error}; {kept}: continue with --resume --out {out}") from None
-                except (ValueError, RuntimeError) as error:  # e.g. sampling from NaN logits: the learning diverged
-                    broken = method.non_finite()
-                    if not (isinstance(error, ValueError) or broken or _mentions_non_finite(error)):
-                        raise
-                    why = f"the weights of {broken} are not finite" if broken else " ".join(str(error).split())
-                    raise TrainingError(
-                        f"training failed at iteration {iteration + 1} ({frames} frames): {why}; {kept} in {out}"
-                    ) from error
-                if broken := method.non_finite():
-                    raise TrainingError(
-                        f"training diverged at iteration {iteration + 1} ({frames} frames): the weights of {broken} "
-                        f"are not finite; {kept} in {out}"
-                    )
-                seconds = time.perf_counter() - start
-                frames, iteration, elapsed = frames + step.frames, iteration + 1, elapsed + seconds
-                window.extend(step.returns)
-                success = float(np.mean([r > 0 for r in window])) if window else math.nan
-                mean_return = float(np.mean(window)) if window else math.nan
-                row = {
-                    "frames": frames,
-                    "iteration": iteration,
-                    "time_s": round(elapsed, 3),
-                    "fps": round(step.frames / seconds, 1),
-                    "success_rate": round(success, 4),
-                    "mean_return": round(mean_return, 4),
-                    "episodes": len(step.returns),
-                } | {column: round(step.losses[key], 5) for key, column in method.LOGGED.items()}
-                metrics.append(row)
-                for key in ("fps", "success_rate", "mean_return"):
-                    writer.add_scalar(f"train/{key}", row[key], frames)
-                for key, value in step.losses.items():
-                    writer.add_scalar(key, value, frames)
-                bar.total = max(bar.total, frames)  # the last iteration may pass the budget: the bar ends full
-                bar.update(step.frames)
-                bar.set_postfix(fps=f"{row['fps']:.0f}", success=f"{success:.2f}", ret=f"{mean_return:.3f}")
-                if time.monotonic() - last_checkpoint >= config.checkpoint_every:
-                    checkpoint()
-                    last_checkpoint = time.monotonic()
-            checkpoint()
-            was_interrupted = interrupted()
+        self.window.extend(step.returns)
+        success = float(np.mean([r > 0 for r in self.window])) if self.window else math.nan
+        mean_return = float(np.mean(self.window)) if self.window else math.nan
+        return {
+            "frames": self.frames,
+            "iteration": self.iteration,
+            "time_s": round(self.elapsed, 3),
+            "fps": round(step.frames / seconds, 1),
+            "success_rate": round(success, 4),
+            "mean_return": round(mean_return, 4),
+            "episodes": len(step.returns),
+        } | {column: round(step.losses[key], 5) for key, column in self.method.LOGGED.items()}
 
-    result = {"frames": frames, "interrupted": was_interrupted, "metrics": str(out / METRICS)}
-    if was_interrupted:
-        print(f"interrupted at {frames} frames; checkpoint saved in {out}; continue with --resume --out {out}")
-        return result
-    if config.eval_episodes:
-        mover_policy, looker = method.policy()
-        held_out = dict(episodes=config.eval_episodes, seed=config.seed, device=device, progress=progress)
-        result["eval"] = {
-            "learned": evaluate(config, mover_policy, looker, **held_out),
-            "random": evaluate(config, None, None, **held_out),
+    def evaluate(self, progress: bool) -> dict:
+        """The learned and a random policy on held-out layouts, printed and written to ``eval.json``."""
+        mover_policy, looker = self.method.policy()
+        held_out = dict(
+            episodes=self.config.eval_episodes, seed=self.config.seed, device=self.device, progress=progress
+        )
+        result = {
+            "learned": evaluate(self.config, mover_policy, looker, **held_out),
+            "random": evaluate(self.config, None, None, **held_out),
         }
-        _write_json(
-            out / EVAL,
-            result["eval"]
-            | {"frames": frames, "eval_seed": config.seed, "torch_cpu_capability": portable.cpu_capability()},
-        )
-        for name, values in result["eval"].items():
+        record = {
+            "frames": self.frames,
+            "eval_seed": self.config.seed,
+            "torch_cpu_capability": portable.cpu_capability(),
+        }
+        _write_json(self.out / EVAL, result | record)
+        for name, values in result.items():
             print(
                 f"{name:>8}: success rate {values['success_rate']:.3f}, mean return {values['mean_return']:.3f} "
                 f"({values['episodes']} held-out episodes)"
             )
-    print(f"activeperc-train: done, {frames} frames; the run is in {out}", flush=True)
-    return result
+        return result
+
+
+class _Log:
+    """Where a run's iterations are logged: ``metrics.csv``, TensorBoard and the progress bar, opened in ``stack``
+    (which closes them)."""
+
+    def __init__(self, stack: ExitStack, run: _Run, progress: bool):
+        resumed = run.state is not None
+        columns = METRIC_COLUMNS + tuple(run.method.LOGGED.values())
+        self.metrics = stack.enter_context(
+            closing(MetricsLog(run.out / METRICS, keep_until=run.frames if resumed else None, columns=columns))
+        )
+        from torch.utils.tensorboard import SummaryWriter
+
+        # scalars are logged against frames: drop those written after the checkpoint
+        purge = run.frames + 1 if resumed else None
+        self.writer = stack.enter_context(SummaryWriter(str(run.out / "tb"), purge_step=purge))
+        self.bar = stack.enter_context(
+            tqdm(total=run.config.frames, initial=run.frames, unit="frame", disable=not progress, dynamic_ncols=True)
+        )
+
+    def write(self, step: Iteration, row: dict) -> None:
+        """Log ``step``'s ``row`` in the CSV, its scalars in TensorBoard, and move the bar on."""
+        self.metrics.append(row)
+        for key in ("fps", "success_rate", "mean_return"):
+            self.writer.add_scalar(f"train/{key}", row[key], row["frames"])
+        for key, value in step.losses.items():
+            self.writer.add_scalar(key, value, row["frames"])
+        self.bar.total = max(self.bar.total, row["frames"])  # the last iteration may pass the budget: the bar ends full
+        self.bar.update(step.frames)
+        self.bar.set_postfix(
+            fps=f"{row['fps']:.0f}", success=f"{row['success_rate']:.2f}", ret=f"{row['mean_return']:.3f}"
+        )
 
 
 def _mentions_non_finite(error: Exception) -> bool:
