@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from activeperc_rl.atomic import atomic_path
-from activeperc_rl.config import TrainConfig
+from activeperc_rl.config import TrainConfig, load_yaml
 
 CHECKPOINT = "checkpoint.pt"
 METRICS = "metrics.csv"
@@ -157,3 +157,14 @@ class MetricsLog:
     def close(self) -> None:
         """Close the file."""
         self._file.close()
+
+
+def load_run_config(out: str | Path) -> TrainConfig:
+    """The config saved in a run directory: its ``config.yaml`` or, in a run killed between its first checkpoint
+    and that file, the checkpoint's (``ValueError`` naming the directory when there is neither)."""
+    path = Path(out) / CONFIG
+    if path.is_file():
+        return TrainConfig.from_saved(load_yaml(path))
+    if (Path(out) / CHECKPOINT).is_file():
+        return TrainConfig.from_saved(load_checkpoint(Path(out) / CHECKPOINT)["config"])
+    raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")

@@ -21,7 +21,7 @@ from activeperc_env.arguments import ArgumentParser, add_config_flags
 from activeperc_env.config import LOOKER_REWARDS
 from activeperc_env.names import VERSIONS
 from activeperc_rl import portable
-from activeperc_rl.checkpoint import CHECKPOINT
+from activeperc_rl.checkpoint import CHECKPOINT, load_run_config
 from activeperc_rl.config import (
     DEVICES,
     E1_LOOKS,
@@ -65,8 +65,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """Merge defaults, the preset (or the resumed run's config) and the flags into a ``TrainConfig``."""
-    from activeperc_rl.train import load_run_config
-
     env_names = {f.name for f in dataclasses.fields(EnvConfig)}
     flags = {k: v for k, v in vars(args).items() if k not in RUN_OPTIONS}
     if args.resume:

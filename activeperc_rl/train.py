@@ -43,7 +43,7 @@ from activeperc_rl.checkpoint import (
     restore_method,
     save_checkpoint,
 )
-from activeperc_rl.config import TrainConfig, load_yaml, resolve_device, save_yaml
+from activeperc_rl.config import TrainConfig, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import Iteration, make_method
 from activeperc_rl.rundir import check_fresh, claim_run_dir
@@ -313,17 +313,6 @@ def _fresh_env_seed(config: TrainConfig, frames: int) -> int:
     """The layout streams' base seed of a resume that cannot put the rooms where they were: from the seed and
     the frames, so that the resumed rooms do not replay the episodes the run started with."""
     return int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
-
-
-def load_run_config(out: str | Path) -> TrainConfig:
-    """The config saved in a run directory: its ``config.yaml`` or, in a run killed between its first checkpoint
-    and that file, the checkpoint's (``ValueError`` naming the directory when there is neither)."""
-    path = Path(out) / CONFIG
-    if path.is_file():
-        return TrainConfig.from_saved(load_yaml(path))
-    if (Path(out) / CHECKPOINT).is_file():
-        return TrainConfig.from_saved(load_checkpoint(Path(out) / CHECKPOINT)["config"])
-    raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")
 
 
 @contextmanager

@@ -111,8 +111,8 @@ def test_a_run_saved_before_room_v1_existed_is_a_v0_run(tmp_path):
 
     import yaml
 
+    from activeperc_rl.checkpoint import load_run_config
     from activeperc_rl.config import TrainConfig
-    from activeperc_rl.train import load_run_config
 
     old = TrainConfig(env=EnvConfig(version=0)).to_dict()
     del old["env"]["version"]
