@@ -472,3 +472,16 @@ def test_reproduction_doc_quotes_the_committed_looker_tables(marker, table):
     assert rows and list(rows[0]) == list(looker_stats.COLUMNS)
     doc = (ROOT / "docs" / "reproduction.md").read_text()
     assert f"<!-- {marker} -->\n{looker_stats.markdown_table(rows)}<!-- /{marker} -->" in doc
+
+
+def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
+    """The README's spread over seeds is what experiments/results/readme_seeds/summary.csv gives (2 digits)."""
+    rows = read_csv(ROOT / "experiments" / "results" / "readme_seeds" / "summary.csv")
+    readme = (ROOT / "README.md").read_text()
+    for method in ("meta_eps0.3", "fixed_forward"):
+        runs = [r for r in rows if r["method"] == method]
+        assert [r["seed"] for r in runs] == ["0", "1", "2", "3", "4"]
+        mean, half = aggregate.mean_ci([float(r["final_success_rate"]) for r in runs])
+        assert f"{mean:.2f} ± {half:.2f}" in readme, (method, mean, half)
+    seed0 = next(r for r in rows if r["method"] == "meta_eps0.3" and r["seed"] == "0")
+    assert f"printed a held-out success rate of {float(seed0['final_success_rate']):.2f}" in readme
