@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         # while the run starts or evaluates, SIGTERM and SIGHUP abort it as Ctrl-C does (training saves first)
         with stop_raises_interrupt():
             config = config_from_args(args)
-            if config.portable and not portable.is_pinned() and argv is None:
+            if config.portable and argv is None:
                 portable.restart_pinned("activeperc-train")  # the same command, with torch's kernels pinned
             if warning := unused_options_warning(args, config):
                 print(warning, file=sys.stderr)

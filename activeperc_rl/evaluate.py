@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
             device = resolve_device(args.device)
             config, mover_policy, looker = load_policy(args.run, device)
-            if config.portable and not portable.is_pinned() and argv is None:
+            if config.portable and argv is None:
                 portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too
             if args.random:
                 mover_policy, looker = None, None

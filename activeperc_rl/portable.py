@@ -1,7 +1,7 @@
 """Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on any x86-64 CPU that has it.
 
-torch picks its CPU kernels (ATen's, oneDNN's) by the CPU it finds, and kernels of another width round
-differently; two environment variables cap that choice, and both are read once, at torch's first kernel. So the
+torch picks its CPU kernels (ATen's, oneDNN's, MKL's) by the CPU it finds, and kernels of another width round
+differently; three environment variables cap that choice, each read once, at its library's first kernel. So the
 commands restart themselves with them set (:func:`restart_pinned`), and :func:`train` refuses a portable config
 in a process that started without them (:func:`require_pinned`).
 """
@@ -16,8 +16,9 @@ from contextlib import suppress
 
 import torch
 
-PINNED_ENVIRONMENT = {"ATEN_CPU_CAPABILITY": "avx2", "ONEDNN_MAX_CPU_ISA": "AVX2"}
-"""The variables that cap torch's CPU kernels at AVX2, and their values."""
+PINNED_ENVIRONMENT = {"ATEN_CPU_CAPABILITY": "avx2", "ONEDNN_MAX_CPU_ISA": "AVX2", "MKL_CBWR": "AVX2,STRICT"}
+"""The variables that cap torch's CPU kernels at AVX2 (ATen's, oneDNN's convolutions, MKL's matrix products), and
+their values."""
 PINNED_CAPABILITY = "AVX2"
 """What ``torch.backends.cpu.get_cpu_capability()`` says in a pinned process."""
 _AVX2_OR_WIDER = ("AVX2", "AVX512")
@@ -37,10 +38,13 @@ def machine() -> str:
     return f"{model}, {cpu_capability()}"
 
 
+def _variables_set() -> bool:
+    return all(os.environ.get(name) == value for name, value in PINNED_ENVIRONMENT.items())
+
+
 def is_pinned() -> bool:
-    """Whether this process's torch kernels are capped at AVX2 (both variables set before torch started)."""
-    variables_set = all(os.environ.get(name) == value for name, value in PINNED_ENVIRONMENT.items())
-    return variables_set and cpu_capability() == PINNED_CAPABILITY
+    """Whether this process's torch kernels are capped at AVX2 (the variables set before torch started)."""
+    return _variables_set() and cpu_capability() == PINNED_CAPABILITY
 
 
 def _pinned_command() -> str:
@@ -58,9 +62,11 @@ def require_pinned() -> None:
 
 
 def restart_pinned(prog: str) -> None:
-    """Replace this process by the same command (``python -m activeperc_rl.<module>`` with its arguments) with
-    the pinned variables set; ``ValueError`` where this CPU has no AVX2 kernels to pin to."""
-    if all(os.environ.get(name) == value for name, value in PINNED_ENVIRONMENT.items()):
+    """Unless this process is pinned, replace it by the same command (``python -m activeperc_rl.<module>`` with its
+    arguments) with the pinned variables set; ``ValueError`` where this CPU has no AVX2 kernels to pin to."""
+    if is_pinned():
+        return
+    if _variables_set():
         raise ValueError(f"{_pinned_command()} are set and torch still uses {cpu_capability()} kernels")
     if cpu_capability() not in _AVX2_OR_WIDER:
         raise ValueError(

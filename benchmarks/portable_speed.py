@@ -5,7 +5,7 @@ process, in ``--rounds`` rounds of every mode in turn, because the machine's spe
 
 - ``default``: torch's own choice (AVX-512 on a CPU that has it);
 - ``onednn``: ``ONEDNN_MAX_CPU_ISA=AVX2`` only (the convolutions' library);
-- ``portable``: ``--portable``, both variables of :data:`activeperc_rl.portable.PINNED_ENVIRONMENT`.
+- ``portable``: ``--portable``, every variable of :data:`activeperc_rl.portable.PINNED_ENVIRONMENT`.
 
 A mode's frames/s is of its iterations after the first (which builds the networks and warms the renderer). The
 report gives every round's frames/s, the median ratio of each mode to ``default`` within a round, and a digest of

@@ -23,7 +23,7 @@ def test_portable_must_be_a_bool():
 
 def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
     """train() cannot pin torch's kernels once torch runs: it names the variables, and writes nothing."""
-    with pytest.raises(ValueError, match="ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2"):
+    with pytest.raises(ValueError, match="ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2 MKL_CBWR=AVX2,STRICT"):
         train(TrainConfig(portable=True, frames=256), tmp_path / "run")
     assert not (tmp_path / "run").exists()
 
@@ -38,7 +38,22 @@ def test_no_second_restart_when_the_variables_did_not_pin(monkeypatch):
     """A process started with the variables that still runs other kernels is an error, not a restart loop."""
     for name, value in portable.PINNED_ENVIRONMENT.items():
         monkeypatch.setenv(name, value)
+    monkeypatch.setattr(portable, "cpu_capability", lambda: "AVX512")  # as if torch had started before them
     with pytest.raises(ValueError, match="are set and torch still uses"):
+        portable.restart_pinned("activeperc-train")
+
+
+def test_a_pinned_process_is_not_restarted(monkeypatch):
+    for name, value in portable.PINNED_ENVIRONMENT.items():
+        monkeypatch.setenv(name, value)
+    monkeypatch.setattr(portable, "cpu_capability", lambda: portable.PINNED_CAPABILITY)
+    monkeypatch.setattr(portable.os, "execve", lambda *args: pytest.fail("restarted a pinned process"))
+    portable.restart_pinned("activeperc-train")
+
+
+def test_a_cpu_without_avx2_is_refused(unpinned, monkeypatch):
+    monkeypatch.setattr(portable, "cpu_capability", lambda: "DEFAULT")
+    with pytest.raises(ValueError, match="this CPU's are DEFAULT: run without --portable"):
         portable.restart_pinned("activeperc-train")
 
 
