@@ -119,7 +119,10 @@ def train_portable(method: str, out: Path) -> subprocess.CompletedProcess:
     environment leaves torch's kernels unpinned, so that the command pins them itself."""
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
     command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, *TRAINING_FLAGS, "--out", str(out)]
-    return subprocess.run(command, env=environment, capture_output=True, text=True, check=True)
+    result = subprocess.run(command, env=environment, capture_output=True, text=True)
+    if result.returncode:
+        raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")
+    return result
 
 
 def training_trace(out: Path) -> dict:

@@ -208,10 +208,10 @@ def check_settings(results: Path, settings: dict, write: bool) -> None:
 def record_machine(results: Path) -> None:
     """Add this machine (:func:`~activeperc_rl.portable.machine`) to the ``machines`` that made the folder's rows,
     in its :data:`SETTINGS` file: runs outside portable mode repeat on the same kind of CPU only."""
-    path = results / SETTINGS
+    path, machine = results / SETTINGS, portable.machine()
     settings = json.loads(path.read_text())
-    if portable.machine() not in settings.setdefault("machines", []):
-        settings["machines"].append(portable.machine())
+    if machine not in settings.setdefault("machines", []):
+        settings["machines"].append(machine)
         with atomic_path(path) as temporary:
             temporary.write_text(json.dumps(settings, indent=2) + "\n")
 
@@ -500,8 +500,6 @@ def main(argv: list[str] | None = None) -> int:
         settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "options": extra}
         read_summary(summary)  # a damaged file is named now, not when the first run has finished
         check_settings(args.results, settings, write=not args.dry_run)
-        if not args.dry_run:
-            record_machine(args.results)
         if args.dry_run:
             for task in tasks:
                 run_dir = task.run_dir(args.runs)
@@ -513,6 +511,7 @@ def main(argv: list[str] | None = None) -> int:
                 command = train_command(task, run_dir, args.frames, args.eval_episodes, extra)
                 print(f"{task.label}: {state}: {' '.join(command)}")
             return 0
+        record_machine(args.results)
     except ValueError as error:
         parser.error(str(error))
     args.runs.mkdir(parents=True, exist_ok=True)
