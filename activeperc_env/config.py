@@ -176,6 +176,12 @@ class UnknownOptionError(TypeError, ValueError):
     any other bad option."""
 
 
+def saved_room(values: dict) -> dict:
+    """The options of a room config as saved (a state, a run): one saved before room v1 existed has no ``version``
+    and is of v0's rooms."""
+    return {"version": 0} | values
+
+
 def physics_steps(config: EnvConfig) -> int:
     """MuJoCo steps in one control period of ``config`` (the nearest whole number)."""
     return _steps(config.control_hz, PHYSICS_TIMESTEP[config.version])

@@ -22,7 +22,7 @@ import mujoco.batch
 import numpy as np
 
 from activeperc_env import names, sensors
-from activeperc_env.config import EnvConfig, is_int, physics_steps
+from activeperc_env.config import EnvConfig, is_int, physics_steps, saved_room
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
 from activeperc_env.robot import make_base
@@ -131,7 +131,7 @@ class Simulator:
         if missing:
             raise ValueError(f"a state without {missing} is not one of get_state()'s")
         ours = dataclasses.asdict(self.config)
-        theirs = {"version": 0} | state["config"]  # states saved before room v1 existed are of v0's rooms
+        theirs = saved_room(state["config"])
         if theirs != ours:
             differ = sorted(k for k in ours.keys() | theirs.keys() if theirs.get(k) != ours.get(k))
             raise ValueError(f"a state of rooms of another config (differs in {differ}) does not fit this simulator")
@@ -158,7 +158,7 @@ class Simulator:
 
     def __setstate__(self, state: dict) -> None:
         """Build the simulator anew and restore the rooms' state."""
-        self.__init__(EnvConfig(**({"version": 0} | state["config"])), state["num_envs"], state["nthread"])
+        self.__init__(EnvConfig(**saved_room(state["config"])), state["num_envs"], state["nthread"])
         self.set_state(state)
 
     # ----------------------------------------------------------------- episode control

@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from activeperc_env import EnvConfig
-from activeperc_env.config import is_int, is_number, normalize_numbers, with_field_docs
+from activeperc_env.config import is_int, is_number, normalize_numbers, saved_room, with_field_docs
 from activeperc_env.core import MAX_ENVS, MAX_SEED
 from activeperc_rl.atomic import atomic_path
 
@@ -234,8 +234,8 @@ class TrainConfig:
         """The config of a run saved in ``config.yaml`` or a checkpoint: as :meth:`from_dict`, but a saved room
         without ``version`` is v0 (runs saved before room v1 existed trained in v0)."""
         env = values.get("env") if isinstance(values, dict) else None
-        if isinstance(env, dict) and "version" not in env:
-            values = values | {"env": env | {"version": 0}}
+        if isinstance(env, dict):
+            values = values | {"env": saved_room(env)}
         return cls.from_dict(values)
 
     def unused(self, names) -> list[str]:

@@ -483,7 +483,7 @@ class Meta(_MoverA2C):
         if self.config.resample_d1 or self.config.mover_rollouts == "d1":
             losses |= self._update_mover(d1)
         self.w2.load_state_dict(self.critic.state_dict())
-        losses["meta/e2_success_rate"] = _success_rate(finished_returns(d2))
+        losses["meta/e2_success_rate"] = success_rate(finished_returns(d2))
         losses["meta/e1_pan_rate"] = _pan_rate(d1)
         losses["meta/e2_pan_rate"] = _pan_rate(d2)
         return Iteration(frames, returns, losses)
@@ -567,5 +567,6 @@ def _pan_rate(rollout: TensorDictBase) -> float:
     return float((rollout.get(("next", LOOKER, "action")) != HOLD).float().mean())
 
 
-def _success_rate(returns: list[float]) -> float:
+def success_rate(returns) -> float:
+    """The fraction of the episodes of ``returns`` that reached the goal (return > 0); ``nan`` without one."""
     return float(np.mean([r > 0 for r in returns])) if returns else float("nan")

@@ -29,6 +29,11 @@ def cpu_capability() -> str:
     return torch.backends.cpu.get_cpu_capability()
 
 
+def has_avx2() -> bool:
+    """Whether torch found AVX2 (or wider) kernels on this CPU, the ones portable mode pins to."""
+    return cpu_capability() in _AVX2_OR_WIDER
+
+
 def machine() -> str:
     """This machine's CPU model and the kernels torch uses on it, e.g. ``"Intel(R) Xeon(R) Processor, AVX512"``."""
     model = platform.processor() or platform.machine()
@@ -68,7 +73,7 @@ def restart_pinned(prog: str) -> None:
         return
     if _variables_set():
         raise ValueError(f"{_pinned_command()} are set and torch still uses {cpu_capability()} kernels")
-    if cpu_capability() not in _AVX2_OR_WIDER:
+    if not has_avx2():
         raise ValueError(
             f"portable mode pins torch's CPU kernels to AVX2, and this CPU's are {cpu_capability()}: "
             f"run without --portable (such runs repeat on the same kind of CPU)"

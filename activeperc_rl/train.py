@@ -45,7 +45,7 @@ from activeperc_rl.checkpoint import (
 )
 from activeperc_rl.config import TrainConfig, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
-from activeperc_rl.methods import Iteration, make_method
+from activeperc_rl.methods import Iteration, make_method, success_rate
 from activeperc_rl.rundir import check_fresh, claim_run_dir
 from activeperc_rl.signals import on_stop_signals
 from activeperc_rl.workers import WorkerError
@@ -231,7 +231,7 @@ class _Run:
             self.elapsed + seconds,
         )
         self.window.extend(step.returns)
-        success = float(np.mean([r > 0 for r in self.window])) if self.window else math.nan
+        success = success_rate(self.window)
         mean_return = float(np.mean(self.window)) if self.window else math.nan
         return {
             "frames": self.frames,

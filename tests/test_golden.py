@@ -57,9 +57,7 @@ def test_torchrl_env_gives_the_stored_episodes(version):
 
 
 TRAINED = json.loads(TRAINING.read_text())
-needs_avx2 = pytest.mark.skipif(
-    portable.cpu_capability() not in ("AVX2", "AVX512"), reason="portable mode pins torch's kernels to AVX2"
-)
+needs_avx2 = pytest.mark.skipif(not portable.has_avx2(), reason="portable mode pins torch's kernels to AVX2")
 
 
 @pytest.fixture(scope="module")
