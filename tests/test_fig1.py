@@ -485,3 +485,54 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
         assert f"{mean:.2f} ± {half:.2f}" in readme, (method, mean, half)
     seed0 = next(r for r in rows if r["method"] == "meta_eps0.3" and r["seed"] == "0")
     assert f"printed a held-out success rate of {float(seed0['final_success_rate']):.2f}" in readme
+
+
+def test_docs_quote_the_spread_of_the_committed_sweeps_beside_single_seeds(aggregate):
+    """The spreads over seeds in training.md, reproduction.md and performance.md are what the sweeps' CSVs give."""
+    results = FIG1 / "results"
+
+    def spread(path, method, seeds, column="final_success_rate"):
+        rows = {r["seed"]: r for r in read_csv(path) if r["method"] == method and r["fov"] == "60"}
+        assert set(map(str, seeds)) <= set(rows), (path, method)
+        return "{:.2f} ± {:.2f}".format(*aggregate.mean_ci([float(rows[str(s)][column]) for s in seeds]))
+
+    def training(config, seeds):  # training success: the last row of each run's exported curve
+        values = [float(read_csv(results / "runs" / f"{config}_seed{s}.csv")[-1]["success_rate"]) for s in seeds]
+        return "{:.2f} ± {:.2f}".format(*aggregate.mean_ci(values))
+
+    def text(name):
+        return " ".join((ROOT / "docs" / name).read_text().split())
+
+    five, three = range(5), range(3)
+    summary, ablations = results / "summary.csv", results / "ablations.csv"
+    readme_seeds = ROOT / "experiments" / "results" / "readme_seeds" / "summary.csv"
+    meta, forward = spread(summary, "meta_eps0.3", five), spread(summary, "fixed_forward", five)
+    meta3, paper3 = spread(summary, "meta_eps0.3", three), spread(ablations, "meta_eps0.3_paper_mover", three)
+    random5 = spread(summary, "meta_eps0.3", five, "random_success_rate")
+    random3 = spread(ablations, "meta_eps0.3_paper_mover", three, "random_success_rate")
+    v1_meta, v1_forward = spread(readme_seeds, "meta_eps0.3", five), spread(readme_seeds, "fixed_forward", five)
+    v1_random = spread(readme_seeds, "meta_eps0.3", five, "random_success_rate")
+    doc = text("training.md")
+    expected = [
+        f"`meta` {v1_meta}, `fixed_forward` {v1_forward}, random {v1_random}",
+        f"`fixed_forward` reaches {v1_forward} over seeds 0-4, each seed above every seed of v0's {forward}",
+        f"seeds 0-2 reached {meta3} held-out (mean and 95 % interval) with `all` against {paper3} with `d1`",
+        f"| 300,288 | {training('meta_eps0.3_fov60', five)} | {meta} vs {random5} |",
+        f"| 300,288 | {training('meta_eps0.3_paper_mover_fov60', three)} | {paper3} vs {random3} |",
+        f"training {training('meta_eps0.3_fov60', three)}, held-out {meta3})",
+        f"| 300,032 | {training('fixed_forward_fov60', five)} | {forward} vs {random5} |",
+        f"seeds 0-4 score {forward} held-out",
+        f"seeds 0-4 reach {meta} held-out against random's {random5}",
+        f"below `fixed_forward`'s {forward} in every seed",
+        f"seeds 0-2 reach {paper3} against {meta3} with `all`",
+    ]
+    for quote in expected:
+        assert quote in doc, quote
+    assert f"`meta_eps0.3` {meta} and `fixed_forward` {forward}" in text("reproduction.md")
+    assert f"sweep give {meta}" in text("performance.md")
+    by = {(r["method"], r["seed"]): float(r["final_success_rate"]) for r in read_csv(summary) if r["fov"] == "60"}
+    assert all(by["meta_eps0.3", str(s)] < by["fixed_forward", str(s)] for s in five)  # "in every seed"
+    paper = {r["seed"]: float(r["final_success_rate"]) for r in read_csv(ablations) if "paper_mover" in r["method"]}
+    assert all(paper[str(s)] < by["meta_eps0.3", str(s)] for s in three)  # "lower in every seed"
+    v1 = [float(r["final_success_rate"]) for r in read_csv(readme_seeds) if r["method"] == "fixed_forward"]
+    assert min(v1) > max(by["fixed_forward", str(s)] for s in five)  # "each seed above every seed of v0's"
