@@ -1,4 +1,4 @@
-"""Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on any x86-64 CPU that has it.
+"""Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on the x86-64 CPUs of a vendor that have it.
 
 torch picks its CPU kernels (ATen's, oneDNN's, MKL's) by the CPU it finds, and kernels of another width round
 differently; three environment variables cap that choice, each read once, at its library's first kernel. So the
@@ -41,6 +41,14 @@ def machine() -> str:
         with open("/proc/cpuinfo") as file:
             model = next((line.split(":", 1)[1].strip() for line in file if line.startswith("model name")), model)
     return f"{model}, {cpu_capability()}"
+
+
+def cpu_vendor() -> str:
+    """This CPU's vendor as Linux names it (``"GenuineIntel"``, ``"AuthenticAMD"``), or ``"unknown"``."""
+    with suppress(OSError):
+        with open("/proc/cpuinfo") as file:
+            return next((line.split(":", 1)[1].strip() for line in file if line.startswith("vendor_id")), "unknown")
+    return "unknown"
 
 
 def _variables_set() -> bool:
