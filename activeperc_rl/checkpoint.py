@@ -68,32 +68,14 @@ def restore_method(method, state: dict, path: str | Path) -> None:
         raise ValueError(f"checkpoint {str(path)!r} is unusable: {error}") from error
 
 
-def collector_state(collector) -> dict:
-    """Where a TorchRL ``Collector`` over our env stands between two rollouts: the env's rooms
-    (``rooms_state``), the step it carries to the next rollout and its trajectory-id counter. ``_carrier`` and
-    ``_traj_pool`` are the Collector's own attributes in torchrl 0.14.1, which we pin."""
-    return {
-        "rooms": collector.env.rooms_state(),
-        "carrier": collector._carrier.clone(),
-        "traj_pool": collector._traj_pool.state_dict(),
-    }
-
-
-def load_collector_state(collector, state: dict) -> None:
-    """Put a ``Collector`` where :func:`collector_state` found it (``KeyError``/``ValueError`` when it does not
-    fit)."""
-    collector.env.load_rooms_state(state["rooms"])
-    carrier, device = state["carrier"], collector._carrier.device
-    collector._carrier.update(carrier if device is None else carrier.to(device))
-    collector._traj_pool.load_state_dict(state["traj_pool"])
-
-
 RESUMABLE = (
     "frames",
     "device",
     "torch_threads",
     "learner_threads",
     "collect_workers",
+    "collector",
+    "ray_address",
     "checkpoint_every",
     "eval_episodes",
 )

@@ -22,7 +22,9 @@ from activeperc_env.config import LOOKER_REWARDS
 from activeperc_env.names import VERSIONS
 from activeperc_rl import portable
 from activeperc_rl.checkpoint import CHECKPOINT, load_run_config
+from activeperc_rl.collection import WorkerError
 from activeperc_rl.config import (
+    COLLECTORS,
     DEVICES,
     E1_LOOKS,
     METHOD_OPTIONS,
@@ -33,11 +35,11 @@ from activeperc_rl.config import (
 )
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt
-from activeperc_rl.workers import WorkerError
 
 CHOICES = {
     "method": METHODS,
     "device": DEVICES,
+    "collector": COLLECTORS,
     "mover_rollouts": MOVER_ROLLOUTS,
     "e1_looks": E1_LOOKS,
     "looker_reward": LOOKER_REWARDS,

@@ -29,6 +29,7 @@ METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
+COLLECTORS = ("process", "ray")
 # The options that only some methods read; every other option is read by every method.
 METHOD_OPTIONS = {
     "epsilon": ("meta",),
@@ -73,14 +74,20 @@ class TrainConfig:
     runs in our checks)."""
     portable: bool = False
     """Pin torch's CPU kernels to AVX2 (activeperc_rl/portable.py), so that the same config and seed train the same
-    run on any x86-64 CPU with AVX2, not only on the same kind of CPU; it costs speed (docs/training.md)."""
+    run on any x86-64 CPU with AVX2 of the same vendor, not only on the same kind of CPU; it costs speed
+    (docs/training.md)."""
     collect_workers: int = 0
-    """Worker processes that step each environment's rooms (0: this process steps them). With k > 0, each
-    environment (E1 and E2 each) splits its num_envs rooms over k processes that collect at once, each with CPU
-    copies of the networks refreshed before every rollout (activeperc_rl/workers.py); the networks learn in this
-    process on device. The layouts are those of k = 0; the sampled actions come from the workers' own seeded
-    streams, so a run repeats itself with the same k but differs from a run with another k. Each worker takes
-    several seconds to start; on 2 cores, 2 workers trained meta 7-16 % faster (docs/performance.md)."""
+    """Workers that step each environment's rooms (0: this process steps them). With k > 0, E1 and E2 each split
+    their num_envs rooms over k workers of TorchRL's collectors (see collector) that collect at once with the
+    weights of the moment (activeperc_rl/collection.py); the networks learn in this process on device. The
+    layouts are those of k = 0; the sampled actions come from the workers' own seeded streams, so a run repeats
+    itself with the same k but differs from a run with another k (docs/training.md)."""
+    collector: str = "process"
+    """Where the collect_workers run: 'process' (TorchRL's multi-process collector on this machine) or 'ray'
+    (TorchRL's Ray collector, on ray_address; num_envs must split evenly over the workers)."""
+    ray_address: str = ""
+    """The Ray cluster the 'ray' collector joins (e.g. 'auto', or the head's 'HOST:6379'); '' starts a local Ray
+    instance on this machine's cores."""
     gamma: float = 0.99
     """Discount factor of the mover's (and IA2C looker's) A2C."""
     gae_lambda: float = 0.95
@@ -175,6 +182,8 @@ class TrainConfig:
                 is_int(self.collect_workers) and is_int(self.num_envs) and 0 <= self.collect_workers <= self.num_envs,
                 f"an int in 0 .. num_envs ({self.num_envs})",
             ),
+            "collector": (self.collector in COLLECTORS, f"one of {COLLECTORS}"),
+            "ray_address": (isinstance(self.ray_address, str), "a Ray address (a string)"),
             "gamma": (is_number(self.gamma) and 0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
             "gae_lambda": (is_number(self.gae_lambda) and 0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
             "lr": (_finite(self.lr) and self.lr > 0, "a finite number > 0"),

@@ -49,7 +49,9 @@ rendered (PettingZoo ``parallel_env`` semantics). There are no ``("looker", "obs
 Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_reset"`` mask, as in
 ``step_and_maybe_reset``, ``rollout`` and ``Collector``). A step with TorchRL's ``"_step"`` mask (partial steps,
 as ``rollout(break_when_any_done=False, break_when_all_done=True)`` sends) moves only the rooms it names; the
-others keep their state and report a zero reward and the done flags of their last step.
+others keep their state and report a zero reward and the done flags of their last step. ``reset(rooms_state=s)``
+puts every room where :meth:`~ActivePerceptionEnv.rooms_state` found it and starts no episode (how a collector
+resumes a checkpoint).
 
 Seeding: :meth:`set_seed` gives room ``i`` its own stream of episode seeds, derived from the base seed and ``i``
 only (``first_room + i`` when the rooms are split over several envs), so two envs seeded alike
@@ -270,12 +272,16 @@ class ActivePerceptionEnv(EnvBase):
 
     # ------------------------------------------------------------------ EnvBase API
     def _reset(self, tensordict: TensorDictBase | None = None, seed: int | None = None, **kwargs) -> TensorDictBase:
-        unknown = sorted(set(kwargs) - {"set_state"})  # TorchRL's own keyword; our rooms have no state to set
+        unknown = sorted(set(kwargs) - {"set_state", "rooms_state"})  # set_state: TorchRL's own keyword
         if unknown:
-            raise TypeError(f"reset() got unknown keyword argument(s) {unknown}; it takes seed=")
+            raise TypeError(f"reset() got unknown keyword argument(s) {unknown}; it takes seed= and rooms_state=")
         if seed is not None:
             self._set_seed(seed)
         mask = None if tensordict is None else tensordict.get("_reset", None)
+        if kwargs.get("rooms_state") is not None:
+            if mask is not None:
+                raise ValueError("reset(rooms_state=...) resumes every room: it takes no '_reset' mask")
+            return self._resume(kwargs["rooms_state"])
         if mask is None:
             ids = np.arange(self.num_envs)
         else:
@@ -363,6 +369,25 @@ class ActivePerceptionEnv(EnvBase):
             rng.bit_generator.state = saved
         self._terminated[:] = state["terminated"]
         self._truncated[:] = state["truncated"]
+
+    def random_state(self) -> torch.Tensor:
+        """The torch random state of the process this env steps in: in a collector's worker, the stream its policy
+        and looker draw from."""
+        return torch.get_rng_state()
+
+    def set_random_state(self, state: torch.Tensor) -> None:
+        """Restore what :meth:`random_state` returned."""
+        torch.set_rng_state(state)
+
+    def _resume(self, state: dict) -> TensorDictBase:
+        """Load ``state`` (:meth:`rooms_state`) and return the rooms' observation as a reset does, starting no
+        episode: ``reset(rooms_state=...)``, how a collector resumes where a checkpoint left its rooms."""
+        self.load_rooms_state(state)
+        observation = TensorDict({"observation": self._observe()}, batch_size=self.batch_size)
+        out = TensorDict({MOVER: observation}, batch_size=self.batch_size, device=self.device)
+        if self._looker is not None:
+            out.set(LOOKER, self._looker_spec.zero())
+        return out
 
     def close(self, *, raise_if_closed: bool = True) -> None:
         """Release the simulator's renderer."""

@@ -28,13 +28,12 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torch import nn
-from torchrl.collectors import Collector
 from torchrl.objectives import A2CLoss, ValueEstimators
 
 from activeperc_env.core import JOINT_ACTIONS, usable_cpus
-from activeperc_rl.checkpoint import collector_state, load_collector_state
+from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import TrainConfig
-from activeperc_rl.envs import LOOKER, MOVER, make_env
+from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import MetaEvaluationLoss
 from activeperc_rl.models import (
     HOLD,
@@ -48,7 +47,6 @@ from activeperc_rl.models import (
     make_joint_policy,
     start_holding,
 )
-from activeperc_rl.workers import ProcessCollector
 
 
 @dataclass
@@ -78,8 +76,7 @@ class Method:
         self.config = config
         self.device = device
         self.env_seed = config.seed
-        self.collectors: list[Collector | ProcessCollector] = []
-        self._iterators: dict[int, object] = {}
+        self.collectors: list[Rollouts] = []
         self.modules: dict[str, nn.Module] = {}
         self.optimizers: dict[str, torch.optim.Optimizer] = {}
 
@@ -128,48 +125,32 @@ class Method:
 
     def _collector(
         self, policy, looker=None, seed_offset: int = 0, name: str = "collector", **env_overrides
-    ) -> Collector | ProcessCollector:
-        """A collector of rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), in this
-        process or split over ``collect_workers`` processes (``name``: what their error messages call it)."""
+    ) -> Rollouts:
+        """Rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), collected in this process
+        or by ``collect_workers`` workers (``name``: what their error messages call them)."""
         cfg = self.config
-        env_config = dataclasses.asdict(cfg.env) | env_overrides
-        env_seed = self.env_seed + seed_offset
-        if cfg.collect_workers:
-            # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
-            entropy = [self.env_seed, len(self.collectors)]
-            collector = ProcessCollector(
-                policy,
-                looker,
-                env_config,
-                cfg.num_envs,
-                cfg.rollout_length,
-                cfg.collect_workers,
-                env_seed=env_seed,
-                torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),
-                device=self.device,
-                name=name,
-            )
-        else:
-            env = make_env(cfg.num_envs, device=self.device, looker=looker, seed=env_seed, **env_config)
-            try:
-                collector = Collector(
-                    env,
-                    policy,
-                    frames_per_batch=cfg.num_envs * cfg.rollout_length,
-                    total_frames=-1,
-                    device=self.device,
-                    auto_register_policy_transforms=False,
-                )
-            except BaseException:
-                env.close()  # its GL context and physics threads, which the collector would have shut down
-                raise
+        # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
+        entropy = [self.env_seed, len(self.collectors)]
+        collector = Rollouts(
+            policy,
+            looker,
+            dataclasses.asdict(cfg.env) | env_overrides,
+            cfg.num_envs,
+            cfg.rollout_length,
+            env_seed=self.env_seed + seed_offset,
+            torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),
+            workers=cfg.collect_workers,
+            backend=cfg.collector,
+            ray_address=cfg.ray_address,
+            device=self.device,
+            name=name,
+        )
         self.collectors.append(collector)
-        self._iterators[id(collector)] = iter(collector)
         return collector
 
-    def _next(self, collector: Collector) -> TensorDictBase:
+    def _next(self, collector: Rollouts) -> TensorDictBase:
         """The next rollout of ``collector``, shape ``[num_envs, rollout_length]``."""
-        return next(self._iterators[id(collector)])
+        return next(collector)
 
     def _optimizer(self, name: str, modules: list[nn.Module], lr: float) -> None:
         params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
@@ -240,18 +221,10 @@ class Method:
             raise ValueError(f"its {k!r} does not fit the config: {' '.join(lines[:2])}") from error
 
     def collection_state(self) -> list[dict]:
-        """Where each collector stands between two rollouts: its env's rooms and the step TorchRL carries over to
-        the next rollout and the trajectory-id counter (with collection workers, each worker's, and its torch random
-        state). With
-        :meth:`load_collection_state` after :meth:`start`, a resumed run with as many workers collects exactly
-        what the uninterrupted run would have."""
-        states = []
-        for collector in self.collectors:
-            if isinstance(collector, ProcessCollector):
-                states.append({"workers": collector.state()})
-            else:
-                states.append(collector_state(collector))
-        return states
+        """Where each collector's rooms stand between two rollouts (:meth:`Rollouts.state`): with
+        :meth:`load_collection_state` after :meth:`start`, a resumed run with as many workers collects exactly what
+        the uninterrupted run would have."""
+        return [collector.state() for collector in self.collectors]
 
     def load_collection_state(self, states: list[dict]) -> None:
         """Put the collectors where :meth:`collection_state` left them; ``ValueError`` when they do not fit."""
@@ -259,10 +232,7 @@ class Method:
             raise ValueError(f"its {len(states)} collectors' state does not fit this run's {len(self.collectors)}")
         try:
             for collector, state in zip(self.collectors, states, strict=True):
-                if isinstance(collector, ProcessCollector):
-                    collector.load_state(state["workers"])
-                else:
-                    load_collector_state(collector, state)
+                collector.load_state(state)
         except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
             raise ValueError(f"its collectors' state does not fit this run: {error}") from error
 
@@ -271,7 +241,6 @@ class Method:
         for collector in self.collectors:
             collector.shutdown()
         self.collectors.clear()
-        self._iterators.clear()
 
 
 class _MoverA2C(Method):

@@ -43,12 +43,12 @@ from activeperc_rl.checkpoint import (
     restore_method,
     save_checkpoint,
 )
+from activeperc_rl.collection import WorkerError
 from activeperc_rl.config import TrainConfig, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import Iteration, make_method, success_rate
 from activeperc_rl.rundir import check_fresh, claim_run_dir
 from activeperc_rl.signals import on_stop_signals
-from activeperc_rl.workers import WorkerError
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:

@@ -1,4 +1,4 @@
-"""Collection in worker processes (``collect_workers``): same layouts, current weights, repeatable, clean stops."""
+"""Collection through TorchRL's collectors (``collect_workers``): same layouts, current weights, clean stops."""
 
 import dataclasses
 import multiprocessing
@@ -18,9 +18,9 @@ from torch import nn
 from activeperc_env import EnvConfig
 from activeperc_rl import cli
 from activeperc_rl.checkpoint import load_checkpoint
+from activeperc_rl.collection import Rollouts, WorkerError
 from activeperc_rl.envs import make_env
 from activeperc_rl.models import FixedLooker, make_actor, make_encoder
-from activeperc_rl.workers import ProcessCollector, WorkerError
 
 SMALL = EnvConfig(max_cycles=6)
 
@@ -64,7 +64,7 @@ def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_we
     actor = mover_that_always_picks(2)
     policy = TensorDictSequential(actor, FixedLooker())
     config = dataclasses.asdict(SMALL)
-    collector = ProcessCollector(policy, None, config, 5, rollout_length=4, workers=2, env_seed=7, torch_seed=0)
+    collector = Rollouts(policy, None, config, 5, rollout_length=4, workers=2, env_seed=7, torch_seed=0)
     try:
         first = next(collector)
         pick(actor, 0)  # the workers must see this change before the next rollout
@@ -86,8 +86,7 @@ def test_each_worker_samples_from_a_stream_of_its_own():
     from activeperc_rl.models import RandomPolicy
 
     config = dataclasses.asdict(SMALL)
-    collector = ProcessCollector(RandomPolicy(("mover", "looker")), None, config, 4, 8, workers=2, env_seed=7,
-                                 torch_seed=0)  # fmt: skip
+    collector = Rollouts(RandomPolicy(("mover", "looker")), None, config, 4, 8, workers=2, env_seed=7, torch_seed=0)
     try:
         actions = next(collector)["mover", "action"]
     finally:
@@ -97,20 +96,23 @@ def test_each_worker_samples_from_a_stream_of_its_own():
 
 def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
     # 3 rooms over 2 workers: worker 0 holds 2 rooms and fails, worker 1 holds 1 and starts fine
-    with pytest.raises(RuntimeError, match="collector worker 0 failed(.|\n)*this looker fails with two rooms"):
-        ProcessCollector(
-            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 3, 4, 2, env_seed=0, torch_seed=0
-        )
+    with pytest.raises(
+        WorkerError, match="collector: a worker failed to start: ArithmeticError: this looker fails with two rooms"
+    ):
+        Rollouts(
+            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 3, 4, workers=2, env_seed=0,
+            torch_seed=0,
+        )  # fmt: skip
     assert multiprocessing.active_children() == []
 
 
 def test_a_killed_worker_is_named_with_the_signal_that_killed_it():
     policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
-    collector = ProcessCollector(policy, None, dataclasses.asdict(SMALL), 2, 4, 2, env_seed=0, torch_seed=0)
+    collector = Rollouts(policy, None, dataclasses.asdict(SMALL), 2, 4, workers=2, env_seed=0, torch_seed=0)
     try:
         next(collector)
-        collector._processes[1].kill()
-        collector._processes[1].join()
+        collector.collector.procs[1].kill()
+        collector.collector.procs[1].join()
         with pytest.raises(WorkerError, match=r"collector worker 1 died \(killed by SIGKILL\)"):
             next(collector)
     finally:
@@ -203,8 +205,8 @@ def test_a_dead_worker_of_meta_names_its_environment():
     )
     method = make_method(config, torch.device("cpu"))
     try:
-        method.e2._processes[0].kill()
-        method.e2._processes[0].join()
+        method.e2.collector.procs[0].kill()
+        method.e2.collector.procs[0].join()
         with pytest.raises(WorkerError, match=r"E2's collector worker 0 died \(killed by SIGKILL\)"):
             method.iterate()
     finally:
@@ -227,6 +229,40 @@ def test_a_worker_that_cannot_be_started_leaves_none_running(monkeypatch):
     monkeypatch.setattr(multiprocessing.context.SpawnProcess, "start", start_once)
     policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
     with pytest.raises(OSError, match="Resource temporarily unavailable"):
-        ProcessCollector(policy, None, dataclasses.asdict(SMALL), 2, 4, 2, env_seed=0, torch_seed=0)
+        Rollouts(policy, None, dataclasses.asdict(SMALL), 2, 4, workers=2, env_seed=0, torch_seed=0)
     assert starts == ["activeperc-collector-0", "activeperc-collector-1"]
     assert multiprocessing.active_children() == []
+
+
+@pytest.mark.parametrize("method", ["meta", "joint"])
+def test_training_on_ray_repeats_itself_across_a_resume_and_sees_the_layouts_of_one_process(tmp_path, method):
+    """``--collector ray`` on a local Ray instance: meta's looker runs inside the workers' envs, joint acts from
+    outside; a run stopped at 100 frames and resumed with as many workers is the uninterrupted run."""
+    args = ("--method", method, "--collector", "ray", "--collect-workers", "2")
+    runs = [run_cli(tmp_path, *args, "--frames", frames, name=f"r{i}") for i, frames in enumerate(("300", "100"))]
+    assert cli.main(["--out", str(runs[1]), "--resume", "--frames", "300", "--no-progress"]) == 0
+    rows = assert_same_run(*runs, columns=("frames", "success_rate", "mean_return", "episodes"))
+    assert int(rows[-1]["frames"]) >= 300
+
+
+def test_ray_workers_start_in_the_layouts_of_one_process():
+    policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
+    config = dataclasses.asdict(SMALL)
+    collector = Rollouts(policy, None, config, 4, 4, workers=2, backend="ray", env_seed=7, torch_seed=0)
+    try:
+        first = next(collector)
+    finally:
+        collector.shutdown()
+    reference = make_env(4, seed=7, **config)
+    try:
+        assert torch.equal(
+            first["mover", "observation", "image"][:, 0], reference.reset()["mover", "observation", "image"]
+        )
+    finally:
+        reference.close()
+
+
+def test_ray_needs_rooms_that_split_evenly():
+    with pytest.raises(ValueError, match="num_envs=5 does not split evenly over 2 Ray workers"):
+        Rollouts(mover_that_always_picks(2), None, dataclasses.asdict(SMALL), 5, 4, workers=2, backend="ray",
+                 env_seed=0, torch_seed=0)  # fmt: skip

@@ -1,0 +1,280 @@
+"""Rollouts of one environment's rooms through TorchRL's collectors: in this process, in worker processes, or on Ray.
+
+:class:`Rollouts` wraps ``torchrl.collectors.Collector``: with ``workers == 0`` one collector steps every room here;
+with ``workers == k`` the rooms are split over ``k`` workers (TorchRL's multi-process collector, or its Ray
+collector on a Ray cluster) whose rollouts are joined along the rooms.
+
+- Same layouts: worker ``j`` builds its env with ``first_room`` at its slice's first room (:class:`WorkerEnv`), so
+  room ``i`` gets the episode seeds it gets in one env of all the rooms.
+- Current weights: before every rollout the mover's policy and the looker (which runs inside the env) reach every
+  worker through the collector's ``map_fn``: its collector's ``update_policy_weights_`` and its ``env.looker``.
+- Own random streams: each worker seeds torch from ``torch_seed`` plus its index as it builds its env.
+- Checkpoints: :meth:`Rollouts.state` holds each env's rooms (and each worker's torch random state);
+  :meth:`Rollouts.load_state` puts them back through ``reset(rooms_state=...)``, which resumes the rooms instead
+  of starting episodes, so a resumed run with as many workers collects what the uninterrupted one would have.
+- Stops: workers ignore SIGINT, SIGTERM and SIGHUP (the main process saves its checkpoint, then shuts them down);
+  a worker that dies is a :class:`WorkerError` naming it.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torch import nn
+from torchrl.collectors import Collector
+
+from activeperc_env.core import usable_cpus
+from activeperc_rl.envs import make_env
+
+BACKENDS = ("process", "ray")
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class WorkerError(RuntimeError):
+    """A collector worker died or failed; the message names the worker and the cause."""
+
+
+def split_rooms(num_envs: int, workers: int) -> list[tuple[int, int]]:
+    """``(first_room, num_rooms)`` of each worker: ``num_envs`` rooms split in order, as evenly as possible."""
+    bounds = np.linspace(0, num_envs, workers + 1).round().astype(int)
+    return [(int(bounds[k]), int(bounds[k + 1] - bounds[k])) for k in range(workers)]
+
+
+def ignore_stop_signals() -> None:
+    """Ignore SIGINT, SIGTERM and SIGHUP in this process (a worker's: its main process handles them)."""
+    if threading.current_thread() is threading.main_thread():
+        for number in STOP_SIGNALS:
+            signal.signal(number, signal.SIG_IGN)
+
+
+@dataclass
+class WorkerEnv:
+    """The env factory of one worker: its slice of the rooms, with torch seeded and threaded for the worker."""
+
+    env_kwargs: dict
+    num_rooms: int
+    first_room: int
+    env_seed: int
+    torch_seed: int
+    threads: int
+    looker: nn.Module | None
+
+    def __call__(self):
+        """Build the worker's env (TorchRL calls this in the worker)."""
+        ignore_stop_signals()
+        # llvmpipe draws with as many threads as there are cores unless told; a worker with one core draws in its
+        # own thread (0): the same pixels without waiting for a helper thread
+        os.environ.setdefault("LP_NUM_THREADS", str(self.threads if self.threads > 1 else 0))
+        torch.set_num_threads(self.threads)
+        torch.manual_seed(self.torch_seed)
+        return make_env(
+            self.num_rooms,
+            looker=self.looker,
+            seed=self.env_seed,
+            first_room=self.first_room,
+            nthread=self.threads,
+            **self.env_kwargs,
+        )
+
+
+class Rollouts:
+    """An iterator of rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` inside the env).
+
+    Args:
+        policy: the mover's policy module (as for ``Collector``).
+        looker: the looker module run inside the env's cycle, or ``None`` (external mode).
+        env_kwargs: the :class:`~activeperc_env.EnvConfig` fields, as a dict.
+        num_envs: rooms in the whole environment.
+        rollout_length: cycles per room in one rollout.
+        env_seed: base seed of the rooms' layout streams (as ``make_env(seed=...)``).
+        torch_seed: seed of the workers' torch streams (worker ``j`` adds ``j``).
+        workers: 0 (this process steps the rooms) or the number of workers.
+        backend: where the workers run: ``"process"`` or ``"ray"``.
+        ray_address: the Ray cluster to join (``""``: a local Ray instance).
+        device: where the rollouts are returned (and, with ``workers == 0``, where the env runs).
+        name: what error messages call these rollouts (``"E2's collector"``).
+    """
+
+    def __init__(
+        self,
+        policy: nn.Module,
+        looker: nn.Module | None,
+        env_kwargs: dict,
+        num_envs: int,
+        rollout_length: int,
+        *,
+        env_seed: int,
+        torch_seed: int,
+        workers: int = 0,
+        backend: str = "process",
+        ray_address: str = "",
+        device: torch.device | str = "cpu",
+        name: str = "collector",
+    ):
+        if backend not in BACKENDS:
+            raise ValueError(f"backend={backend!r} is invalid: expected one of {BACKENDS}")
+        if not isinstance(workers, int) or not 0 <= workers <= num_envs:
+            raise ValueError(f"workers={workers!r} is invalid: expected an int in 0 .. num_envs={num_envs}")
+        if backend == "ray" and workers and num_envs % workers:
+            raise ValueError(f"num_envs={num_envs} does not split evenly over {workers} Ray workers")
+        self.device, self.workers, self.backend, self.name = torch.device(device), workers, backend, name
+        self._policy, self._looker = policy, looker
+        if workers == 0:
+            env = make_env(num_envs, device=self.device, looker=looker, seed=env_seed, **env_kwargs)
+            try:
+                self.collector = Collector(
+                    env,
+                    policy,
+                    frames_per_batch=num_envs * rollout_length,
+                    total_frames=-1,
+                    device=self.device,
+                    auto_register_policy_transforms=False,
+                )
+            except BaseException:
+                env.close()  # its GL context and physics threads, which the collector would have shut down
+                raise
+        else:
+            threads = max(1, usable_cpus() // workers)
+            envs = [
+                WorkerEnv(env_kwargs, n, first, env_seed, torch_seed + k, threads, looker)
+                for k, (first, n) in enumerate(split_rooms(num_envs, workers))
+            ]
+            frames = [env.num_rooms * rollout_length for env in envs]
+            try:
+                if backend == "ray":
+                    self.collector = _ray_collector(envs, policy, frames, ray_address)
+                else:
+                    self.collector = _process_collector(envs, policy, frames, threads)
+            except Exception as error:  # TorchRL re-raises a worker's error with the worker's traceback
+                raise WorkerError(f"{name}: a worker failed to start: {type(error).__name__}: {error}") from None
+        self._iterator = iter(self.collector)
+
+    def __iter__(self) -> Rollouts:
+        return self
+
+    def __next__(self) -> TensorDictBase:
+        """The next rollout, acted with the weights of the moment."""
+        with self._named_failures():
+            if self.workers:
+                self._send_weights()
+            rollout = next(self._iterator)
+        if rollout.ndim == 3:  # Ray stacks its workers' rollouts
+            rollout = rollout.reshape(-1, rollout.shape[-1])
+        return rollout.to(self.device)
+
+    def _send_weights(self) -> None:
+        """Copy the live policy's and looker's weights into every worker's (through ``map_fn``, which names a worker
+        that died instead of waiting for it)."""
+        policy = TensorDict.from_module(self._policy).data.clone().cpu()
+        self.collector.map_fn("update_policy_weights_", [(policy,)] * self.workers)
+        if self._looker is not None:
+            looker = {k: v.detach().clone().cpu() for k, v in self._looker.state_dict().items()}
+            self.collector.map_fn("env.looker.load_state_dict", [(looker,)] * self.workers)
+
+    def state(self) -> dict:
+        """Where the rooms stand between two rollouts (each worker's rooms and torch random state)."""
+        with self._named_failures():
+            if not self.workers:
+                return {"rooms": self.collector.env.rooms_state()}
+            rooms = self.collector.map_fn("env.rooms_state")
+            streams = self.collector.map_fn("env.random_state")
+        return {"workers": [{"rooms": r, "torch_rng": s} for r, s in zip(rooms, streams, strict=True)]}
+
+    def load_state(self, state: dict) -> None:
+        """Put the rooms where :meth:`state` found them; ``ValueError`` when the state does not fit them."""
+        if not self.workers:
+            self.collector.reset(rooms_state=state["rooms"])
+            return
+        workers = state.get("workers")
+        if not isinstance(workers, list) or len(workers) != self.workers:
+            raise ValueError(f"its workers' states do not fit {self.workers} workers")
+        with self._named_failures():
+            self.collector.map_fn("env.set_random_state", [(w["torch_rng"],) for w in workers])
+            kwargs = [{"rooms_state": w["rooms"]} for w in workers]
+            for result in self.collector.map_fn("reset", list_of_kwargs=kwargs):
+                if isinstance(result, Exception):
+                    raise ValueError(str(result))
+
+    def shutdown(self) -> None:
+        """Stop the collector and its workers (each closes its env)."""
+        self.collector.shutdown()
+
+    @contextmanager
+    def _named_failures(self):
+        """Turn a worker's death inside the block into a :class:`WorkerError` naming it."""
+        died = _dead_worker(self.collector)  # before TorchRL waits on a worker that will never answer
+        if died is not None:
+            raise WorkerError(f"{self.name} worker {died}")
+        try:
+            yield
+        except WorkerError:
+            raise
+        except Exception as error:  # TorchRL's own error after a death, or the death's aftermath
+            died = _dead_worker(self.collector)
+            if died is not None:
+                raise WorkerError(f"{self.name} worker {died}") from None
+            if type(error).__name__ in ("RayActorError", "ActorDiedError"):
+                raise WorkerError(f"{self.name}: a Ray worker died: {str(error).splitlines()[0]}") from None
+            raise
+
+
+def _dead_worker(collector) -> str | None:
+    """``"k died (how)"`` for the first worker process of ``collector`` that has ended, or ``None``."""
+    for k, process in enumerate(getattr(collector, "procs", None) or []):
+        try:
+            code = process.exitcode
+        except ValueError:  # closed by TorchRL after another worker failed
+            continue
+        if code is not None:
+            how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+            hint = " (the kernel's out-of-memory killer sends SIGKILL)" if code == -signal.SIGKILL else ""
+            return f"{k} died ({how}){hint}"
+    return None
+
+
+def _process_collector(envs: list[WorkerEnv], policy, frames: list[int], threads: int):
+    """TorchRL's multi-process collector over ``envs``, its workers' rollouts joined along the rooms."""
+    from torchrl.collectors import MultiSyncCollector
+
+    # the weights travel to the workers as tensors through pipes: with file descriptors a worker that dies while
+    # it fetches one leaves a traceback in multiprocessing's descriptor-sharing thread; named files do not
+    torch.multiprocessing.set_sharing_strategy("file_system")
+    return MultiSyncCollector(
+        envs,
+        policy,
+        frames_per_batch=frames,
+        total_frames=-1,
+        cat_results=0,
+        init_fn=ignore_stop_signals,
+        num_threads=torch.get_num_threads(),
+        num_sub_threads=threads,
+        auto_register_policy_transforms=False,
+        weight_sync_schemes={},  # Rollouts sends the weights itself, before every rollout
+    )
+
+
+def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address: str):
+    """TorchRL's Ray collector over ``envs`` on the cluster at ``ray_address`` (``""``: a local Ray instance)."""
+    from torchrl.collectors.distributed import RayCollector
+
+    if ray_address:
+        init = {"address": ray_address}
+    else:
+        init = {"num_cpus": max(usable_cpus(), len(envs)), "include_dashboard": False}
+    return RayCollector(
+        envs,
+        policy,
+        frames_per_batch=sum(frames),
+        total_frames=2**62,  # unbounded: the trainer decides when to stop
+        sync=True,
+        ray_init_config=init,
+        remote_configs={"num_cpus": 1, "memory": None},
+        collector_kwargs={"auto_register_policy_transforms": False},
+    )
