@@ -34,7 +34,8 @@ JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint ac
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
 MAX_SEED = 2**63 - 1  # the largest seed a room takes (seeds travel as int64 through the batched APIs)
 MAX_ENVS = 2**16  # the most rooms one simulator holds (a room takes about 0.6 MB, its view included)
-STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what get_state returns
+STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what every state of get_state holds
+OUTCOME_KEYS = ("success", "episode_return")  # what get_state holds too; states saved before them lack them
 
 
 @dataclass
@@ -49,6 +50,15 @@ class MoveResult:
     """The robot reached the goal."""
     truncated: np.ndarray
     """The episode reached ``max_cycles`` without success."""
+    success: np.ndarray
+    """The robot reached the goal: the episode's outcome where it ended, False while it runs."""
+    episode_return: np.ndarray
+    """The mover's rewards summed over the episode, this move's included: its return where it ended (float64)."""
+
+    def outcome(self, index: int = 0) -> dict:
+        """Move ``index``'s outcome as the envs' ``info`` of an episode's last step: ``episode_success`` (bool) and
+        ``episode_return`` (float)."""
+        return {"episode_success": bool(self.success[index]), "episode_return": float(self.episode_return[index])}
 
 
 def load_model(config: EnvConfig) -> mujoco.MjModel:
@@ -107,6 +117,8 @@ class Simulator:
         self._tiles = np.full(num_envs, -1)
         self.cycle = np.zeros(num_envs, dtype=np.int64)
         self.done = np.ones(num_envs, dtype=bool)
+        self.success = np.zeros(num_envs, dtype=bool)  # whether each room's episode reached the goal
+        self.episode_return = np.zeros(num_envs)  # the mover's rewards summed over each room's episode
         self._all_started = False  # whether every room has had its first reset (see require_started)
         self._rngs = [np.random.default_rng() for _ in range(num_envs)]
         self._pan_deltas = math.radians(self.config.pan_step) * np.array([1.0, 0.0, -1.0])
@@ -115,13 +127,16 @@ class Simulator:
     # ----------------------------------------------------------------- state and copies
     def get_state(self) -> dict:
         """Everything the rooms' future depends on, as plain data: the config, MuJoCo's state rows of every room
-        (solver warm start included), the cycle counters, which rooms are done, and each room's random stream. With
-        :meth:`set_state` on a simulator of the same config and ``num_envs``, it steps on exactly as this one."""
+        (solver warm start included), the cycle counters, which rooms are done, their episodes' outcomes so far, and
+        each room's random stream. With :meth:`set_state` on a simulator of the same config and ``num_envs``, it steps
+        on exactly as this one."""
         return {
             "config": dataclasses.asdict(self.config),
             "physics": self._batch.state.copy(),
             "cycle": self.cycle.copy(),
             "done": self.done.copy(),
+            "success": self.success.copy(),
+            "episode_return": self.episode_return.copy(),
             "rngs": [rng.bit_generator.state for rng in self._rngs],
         }
 
@@ -136,7 +151,8 @@ class Simulator:
             differ = sorted(k for k in ours.keys() | theirs.keys() if theirs.get(k) != ours.get(k))
             raise ValueError(f"a state of rooms of another config (differs in {differ}) does not fit this simulator")
         physics = np.asarray(state["physics"])
-        per_room = {np.shape(state["cycle"]), np.shape(state["done"]), (len(state["rngs"]),)}
+        per_room = {np.shape(state[key]) for key in ("cycle", "done", *OUTCOME_KEYS) if key in state}
+        per_room.add((len(state["rngs"]),))
         if physics.shape != self._batch.state.shape or per_room != {(self.num_envs,)}:
             raise ValueError(
                 f"a state of physics rows {physics.shape} and {len(state['rngs'])} rooms does not fit this simulator "
@@ -145,6 +161,10 @@ class Simulator:
         self._batch.state[:] = physics
         self.cycle[:] = state["cycle"]
         self.done[:] = state["done"]
+        # a state saved before outcomes were kept: its rooms paid only at the goal, which ends an episode, so a
+        # running room had no success and a return of 0
+        self.success[:] = state.get("success", False)
+        self.episode_return[:] = state.get("episode_return", 0.0)
         for rng, saved in zip(self._rngs, state["rngs"], strict=True):
             rng.bit_generator.state = saved
         self._tiles[:] = -1  # every view is drawn anew
@@ -191,6 +211,8 @@ class Simulator:
         self._ctrl[ids] = 0.0
         self.cycle[ids] = 0
         self.done[ids] = False
+        self.success[ids] = False
+        self.episode_return[ids] = 0.0
         self._tiles[ids] = -1
         self._ranged[ids] = False
         self._all_started = self._all_started or bool(self.started().all())
@@ -236,12 +258,26 @@ class Simulator:
         robot = self._base.xy(self._qpos[ids])
         goal = self._mocap_pos[ids][:, self._ids.goal, :2]
         success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
-        frac = self.cycle[ids] / self.config.max_cycles
-        reward = np.where(success, 1.0 - 0.2 * frac, 0.0)
+        reward = self._reward(success, self.cycle[ids])
         truncated = ~success & (self.cycle[ids] >= self.config.max_cycles)
         self.done[ids] = success | truncated
+        self.success[ids] = success
+        self.episode_return[ids] += reward
         looker_reward = reward.copy() if self.config.looker_reward == "shared" else np.zeros_like(reward)
-        return MoveResult(reward=reward, looker_reward=looker_reward, terminated=success, truncated=truncated)
+        return MoveResult(
+            reward=reward,
+            looker_reward=looker_reward,
+            terminated=success,
+            truncated=truncated,
+            success=success.copy(),
+            episode_return=self.episode_return[ids],
+        )
+
+    def _reward(self, success: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+        """The mover's reward for moves that ended cycles ``cycles``: ``1 - 0.2 t / T`` where they reached the goal,
+        else 0 (float64)."""
+        frac = cycles / self.config.max_cycles
+        return np.where(success, 1.0 - 0.2 * frac, 0.0)
 
     def outside_episode(self, call: str, index: int = 0) -> RuntimeError:
         """The error for ``call`` (e.g. ``"step()"``) made on room ``index`` outside an episode: before its first

@@ -70,11 +70,10 @@ def main(argv: list[str] | None = None) -> int:
         start_map = env.render()
         frames = [side_by_side(start_map, obs[MOVER]["image"])]
         views = [obs[MOVER]["image"]]
-        total, cycles = 0.0, 0
+        cycles = 0
         while env.agents:
             actions = {MOVER: int(rng.integers(3)), LOOKER: int(rng.integers(3))}
-            obs, rewards, *_ = env.step(actions)
-            total += rewards[MOVER]
+            obs, *_, infos = env.step(actions)
             cycles += 1
             if cycles < STRIP_CYCLES:
                 views.append(obs[MOVER]["image"])
@@ -88,8 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         fps = env.config.control_hz  # the video plays in simulated time
         iio.imwrite(args.out / "episode.mp4", np.stack(frames), fps=fps, codec="libx264", macro_block_size=1)
         written.append("episode.mp4")
-    outcome = "reached the goal" if total > 0 else "did not reach the goal"
-    print(f"random agents {outcome} in {cycles} cycles, return {total:.3f}")
+    outcome = "reached the goal" if infos[MOVER]["episode_success"] else "did not reach the goal"
+    print(f"random agents {outcome} in {cycles} cycles, return {infos[MOVER]['episode_return']:.3f}")
     print(f"wrote {', '.join(str(args.out / name) for name in written)}")
     return 0
 

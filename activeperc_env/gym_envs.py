@@ -46,13 +46,9 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
         self.sim.look(np.array([look]))
         if self.render_mode == "human":
             self.render()
-        return (
-            self._observe(),
-            float(result.reward[0]),
-            bool(result.terminated[0]),
-            bool(result.truncated[0]),
-            {"cycle": int(self.sim.cycle[0])},
-        )
+        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
+        info = {"cycle": int(self.sim.cycle[0])} | (result.outcome() if terminated or truncated else {})
+        return self._observe(), float(result.reward[0]), terminated, truncated, info
 
     def _split(self, action) -> tuple[int, int]:
         raise NotImplementedError
@@ -82,7 +78,8 @@ class JointEnv(_SingleAgentEnv):
         As :class:`~activeperc_env.pettingzoo_env.raw_env`: a seeded layout, the camera facing forward.
 
     Episode End:
-        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles.
+        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles. The last step's
+        ``info`` adds ``episode_success`` (the robot reached the goal) and ``episode_return`` (the sum of the rewards).
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
@@ -121,7 +118,8 @@ class FixedForwardEnv(_SingleAgentEnv):
         As :class:`~activeperc_env.pettingzoo_env.raw_env`: a seeded layout, the camera facing forward.
 
     Episode End:
-        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles.
+        Terminated when the robot reaches the goal; truncated after ``max_cycles`` cycles. The last step's
+        ``info`` adds ``episode_success`` (the robot reached the goal) and ``episode_return`` (the sum of the rewards).
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.

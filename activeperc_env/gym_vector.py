@@ -15,7 +15,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from activeperc_env.config import EnvConfig, is_int
-from activeperc_env.core import HOLD, JOINT_ACTIONS, MAX_SEED, Simulator, split_joint
+from activeperc_env.core import HOLD, JOINT_ACTIONS, MAX_SEED, MoveResult, Simulator, split_joint
 from activeperc_env.spaces import mover_space, observation_space
 
 
@@ -117,18 +117,20 @@ class _SingleAgentVectorEnv(VectorEnv):
         rewards = np.zeros(self.num_envs, dtype=np.float64)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
+        outcomes = {}
         if play.size:
             result = self.sim.move(moves[play], ids=play)
             self.sim.look(looks[play], ids=play)
             rewards[play], terminated[play], truncated[play] = result.reward, result.terminated, result.truncated
+            outcomes = self._outcomes(play, result)
             if self.max_episode_steps is not None:
                 truncated[play] |= self.sim.cycle[play] >= self.max_episode_steps
         if restart.any():
             self.sim.reset(np.flatnonzero(restart))
         self._ended = terminated | truncated
-        infos = {}
+        infos = outcomes
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self._ended.any():
-            infos = self._final(np.flatnonzero(self._ended))
+            infos = self._final(np.flatnonzero(self._ended), outcomes)
             self.sim.reset(np.flatnonzero(self._ended))
         infos.update({"cycle": self.sim.cycle.copy(), "_cycle": np.ones(self.num_envs, dtype=bool)})
         return self._observe(), rewards, terminated, truncated, infos
@@ -148,8 +150,28 @@ class _SingleAgentVectorEnv(VectorEnv):
     def _observe(self) -> dict:
         return self.sim.observe()
 
-    def _final(self, ended: np.ndarray) -> dict:
-        """``SAME_STEP``'s ``final_obs`` and ``final_info`` of the rooms ``ended``, before they are reset."""
+    def _outcomes(self, rooms: np.ndarray, result: MoveResult) -> dict:
+        """``episode_success`` and ``episode_return`` of the rooms (of ``rooms``) whose episode the move ``result``
+        ended, with their masks, as ``SyncVectorEnv`` gathers the one-room envs' infos."""
+        over = result.terminated | result.truncated
+        if not over.any():
+            return {}
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[rooms[over]] = True
+        success = np.zeros(self.num_envs, dtype=bool)
+        success[rooms[over]] = result.success[over]
+        returns = np.zeros(self.num_envs, dtype=np.float64)
+        returns[rooms[over]] = result.episode_return[over]
+        return {
+            "episode_success": success,
+            "_episode_success": mask,
+            "episode_return": returns,
+            "_episode_return": mask.copy(),
+        }
+
+    def _final(self, ended: np.ndarray, outcomes: dict) -> dict:
+        """``SAME_STEP``'s ``final_obs`` and ``final_info`` (with the ``outcomes`` of the episodes the rooms ended) of
+        the rooms ``ended``, before they are reset."""
         observation = self.sim.observe()  # every room drawn in its own tile, as after
         final_obs = np.full(self.num_envs, None, dtype=object)
         for i in ended:
@@ -160,7 +182,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         return {
             "final_obs": final_obs,
             "_final_obs": mask,
-            "final_info": {"cycle": cycles, "_cycle": mask.copy()},
+            "final_info": {"cycle": cycles, "_cycle": mask.copy()} | outcomes,
             "_final_info": mask.copy(),
         }
 

@@ -103,7 +103,8 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     Episode End:
         Terminated at the end of the cycle in which the robot reaches the goal; truncated at
-        the end of cycle ``max_cycles``.
+        the end of cycle ``max_cycles``. Then both agents' ``info`` holds the episode's outcome:
+        ``episode_success`` (the robot reached the goal) and ``episode_return`` (the mover's return).
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
@@ -130,7 +131,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         self.infos = {agent: {} for agent in self.agents}
         obs = self._observe()
         self._obs = {MOVER: obs, LOOKER: obs}
-        self._pending = (False, False)
+        self._pending = (False, False, {})  # the ends and outcome of the cycle's move, applied after the look
         self.agent_selection = MOVER
         if self.render_mode == "human":
             self.render()
@@ -159,16 +160,18 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         if agent == MOVER:
             result = self.sim.move(np.array([action]))
             self.rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
-            self._pending = (bool(result.terminated[0]), bool(result.truncated[0]))
+            self._pending = (bool(result.terminated[0]), bool(result.truncated[0]), result.outcome())
             self._obs[LOOKER] = self._observe()
             self.agent_selection = LOOKER
         else:
             self.sim.look(np.array([action]))
             self.rewards = dict.fromkeys(self.agents, 0.0)
             self._obs[MOVER] = self._observe()
-            terminated, truncated = self._pending
+            terminated, truncated, outcome = self._pending
             self.terminations = dict.fromkeys(self.agents, terminated)
             self.truncations = dict.fromkeys(self.agents, truncated)
+            if terminated or truncated:
+                self.infos = {agent: dict(outcome) for agent in self.agents}
             self.agent_selection = MOVER
         self._accumulate_rewards()
         if self.render_mode == "human":
@@ -213,6 +216,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
         rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
         agents = self.agents
+        info = result.outcome() if terminated or truncated else {}
         if terminated or truncated:
             self.agents = []
         if self.render_mode == "human":
@@ -222,7 +226,7 @@ class parallel_env(_Adapter, ParallelEnv):  # PettingZoo's naming convention
             rewards,
             dict.fromkeys(agents, terminated),
             dict.fromkeys(agents, truncated),
-            {agent: {} for agent in agents},
+            {agent: dict(info) for agent in agents},
         )
 
 

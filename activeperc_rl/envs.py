@@ -29,7 +29,13 @@ Keys are grouped per agent; done flags are shared, at the root (shape ``(..., 1)
     ("mover", "observation", "range")  float32 (K,)      range sensor, metres (v1; absent where range_rays is 0)
     ("mover", "action")                int64 ()          Categorical(3): turn left/right, forward
     ("mover", "reward"), ("looker", "reward")  float32 (1,)
+    ("mover", "episode_success")       bool (1,)         the robot reached the goal (False while the episode runs)
+    ("mover", "episode_return")        float32 (1,)      the mover's rewards summed over the episode so far
     "done", "terminated", "truncated"  bool (1,)
+
+Where ``("next", "done")`` is set, ``("next", "mover", "episode_success")`` and ``("next", "mover",
+"episode_return")`` are the episode's outcome; they are observation entries (as TorchRL's ``RewardSum`` writes its
+``episode_reward``), so a reset sets them to False and 0.
 
 *Looker mode* (a looker module is set, at construction or with :meth:`ActivePerceptionEnv.set_looker`):
 the module is called on a tensordict holding ``("looker", "observation", "image"/"pan")`` (``s_bar``,
@@ -199,6 +205,12 @@ class ActivePerceptionEnv(EnvBase):
             self._obs_spec["range"] = Bounded(
                 0.0, cfg.range_max, (*n, cfg.range_rays), dtype=torch.float32, device=self.device
             )
+        self._outcome_spec = Composite(
+            episode_success=Categorical(2, (*n, 1), dtype=torch.bool, device=self.device),
+            episode_return=Unbounded((*n, 1), dtype=torch.float32, device=self.device),
+            shape=n,
+            device=self.device,
+        )
         reward = Unbounded((*n, 1), dtype=torch.float32, device=self.device)
         self.full_reward_spec = Composite(
             {MOVER: Composite(reward=reward, shape=n), LOOKER: Composite(reward=reward.clone(), shape=n)},
@@ -219,6 +231,7 @@ class ActivePerceptionEnv(EnvBase):
         n = self.batch_size
         actions = {MOVER: self._action_spec(MOVER)}
         observations = {MOVER: Composite(observation=self._obs_spec.clone(), shape=n)}
+        observations[MOVER].update(self._outcome_spec.clone())
         if self._looker is None:
             actions[LOOKER] = self._action_spec(LOOKER)
         else:
@@ -297,6 +310,7 @@ class ActivePerceptionEnv(EnvBase):
             for key, value in self.sim.observe(ids).items():
                 observation[key][index] = torch.from_numpy(value)
         out = TensorDict({MOVER: {"observation": observation}}, batch_size=self.batch_size, device=self.device)
+        out.update({MOVER: self._outcomes()})
         if self._looker is not None:
             out.set(LOOKER, self._looker_spec.zero())
         return out
@@ -323,6 +337,7 @@ class ActivePerceptionEnv(EnvBase):
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
         out.set((MOVER, "observation"), self._observe())
+        out.update({MOVER: self._outcomes()})
         for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
             rewards = np.zeros(n, dtype=np.float32)
             rewards[ids] = reward
@@ -393,6 +408,12 @@ class ActivePerceptionEnv(EnvBase):
         """Release the simulator's renderer."""
         self.sim.close()
         super().close(raise_if_closed=raise_if_closed)
+
+    def _outcomes(self) -> TensorDict:
+        """Every room's ``episode_success`` and ``episode_return`` (the simulator's) on ``device``."""
+        outcomes = {"episode_success": self.sim.success, "episode_return": self.sim.episode_return.astype(np.float32)}
+        values = {key: torch.from_numpy(value.copy()).reshape(self.num_envs, 1) for key, value in outcomes.items()}
+        return TensorDict(values, batch_size=self.batch_size).to(self.device)
 
     def _observe(self) -> TensorDict:
         """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`) on ``device``."""

@@ -80,7 +80,7 @@ def evaluate(
         mover_policy, looker = RandomPolicy((MOVER, LOOKER)), None
     rooms = min(episodes, MAX_ROOMS)
     quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
-    returns, lengths = [[] for _ in range(rooms)], [[] for _ in range(rooms)]
+    returns, successes, lengths = ([[] for _ in range(rooms)] for _ in range(3))
     frames = []
     env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", **dataclasses.asdict(config.env))
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
@@ -100,10 +100,12 @@ def evaluate(
                     frames.append(_video_frame(env, td.get(("next", MOVER, "observation", "image"))))
                 following = env.maybe_reset(step_mdp(td, keep_other=True))
                 done = td.get(("next", "done")).reshape(-1).cpu().numpy()
-                reward = td.get(("next", MOVER, "reward")).reshape(-1).cpu().numpy()
+                episode_return = td.get(("next", MOVER, "episode_return")).reshape(-1).cpu().numpy()
+                success = td.get(("next", MOVER, "episode_success")).reshape(-1).cpu().numpy()
                 for i in np.flatnonzero(done):
                     if len(returns[i]) < quota[i]:
-                        returns[i].append(float(reward[i]))
+                        returns[i].append(float(episode_return[i]))
+                        successes[i].append(bool(success[i]))
                         lengths[i].append(int(steps[i]))
                         bar.update()
                     steps[i] = 0
@@ -116,7 +118,7 @@ def evaluate(
     flat = np.concatenate([np.asarray(r) for r in returns])
     return {
         "episodes": int(flat.size),
-        "success_rate": float(np.mean(flat > 0)),
+        "success_rate": float(np.mean(np.concatenate(successes))),
         "mean_return": float(np.mean(flat)),
         "mean_length": float(np.mean(np.concatenate([np.asarray(n) for n in lengths]))),
     }

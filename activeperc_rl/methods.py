@@ -57,6 +57,8 @@ class Iteration:
     """Environment cycles stepped, over every room of every environment."""
     returns: list[float] = field(default_factory=list)
     """Returns of the episodes that ended in the rollouts that measure the deployed policy."""
+    successes: list[bool] = field(default_factory=list)
+    """Whether each of those episodes reached the goal (in the order of :attr:`returns`)."""
     losses: dict[str, float] = field(default_factory=dict)
     """Scalar losses and diagnostics of the updates."""
 
@@ -273,7 +275,7 @@ class FixedForward(_MoverA2C):
         """One rollout, one A2C step."""
         rollout = self._next(self.collector)
         losses = self._update_mover(rollout)
-        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+        return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
 
     def policy(self):
         """The mover, with the camera held forward."""
@@ -305,7 +307,7 @@ class IA2C(_MoverA2C):
             with torch.no_grad():
                 self.looker_loss.value_estimator(transitions)
             losses |= self._step("looker", self.looker_loss, transitions[valid])
-        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+        return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
 
     def policy(self):
         """The mover with the learned looker in the loop."""
@@ -331,7 +333,7 @@ class Joint(Method):
         """One rollout, one A2C step."""
         rollout = self._next(self.collector)
         losses = self._step("joint", self.loss, rollout)
-        return Iteration(rollout.numel(), finished_returns(rollout), losses)
+        return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
 
     def policy(self):
         """The joint agent, writing both actions."""
@@ -438,7 +440,7 @@ class Meta(_MoverA2C):
     def iterate(self) -> Iteration:
         """Steps 1 to 6 of the class docstring."""
         d1, d2 = self._next(self.e1), self._next(self.e2)
-        frames, returns = d1.numel() + d2.numel(), finished_returns(d1)
+        frames, (returns, successes) = d1.numel() + d2.numel(), finished_episodes(d1)
         losses = self._step("looker", self.meta_loss, d2, d1)
         soft_update(self.phi1, self.phi2, self.config.alpha)
         if self.config.mover_rollouts == "all":
@@ -448,14 +450,15 @@ class Meta(_MoverA2C):
         if self.config.resample_d1:
             d1 = self._next(self.e1)
             frames += d1.numel()
-            returns += finished_returns(d1)
+            more_returns, more_successes = finished_episodes(d1)
+            returns, successes = returns + more_returns, successes + more_successes
         if self.config.resample_d1 or self.config.mover_rollouts == "d1":
             losses |= self._update_mover(d1)
         self.w2.load_state_dict(self.critic.state_dict())
-        losses["meta/e2_success_rate"] = success_rate(finished_returns(d2))
+        losses["meta/e2_success_rate"] = success_rate(finished_episodes(d2)[1])
         losses["meta/e1_pan_rate"] = _pan_rate(d1)
         losses["meta/e2_pan_rate"] = _pan_rate(d2)
-        return Iteration(frames, returns, losses)
+        return Iteration(frames, returns, successes, losses)
 
     def policy(self):
         """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper, picking its
@@ -498,15 +501,13 @@ def soft_update(target: nn.Module, source: nn.Module, alpha: float) -> None:
         t.lerp_(s, alpha)
 
 
-def finished_returns(rollout: TensorDictBase) -> list[float]:
-    """Returns of the episodes that ended inside ``rollout``.
-
-    The env's reward is 0 at every cycle but the one that reaches the goal, so an episode's return
-    is its last cycle's reward.
-    """
+def finished_episodes(rollout: TensorDictBase) -> tuple[list[float], list[bool]]:
+    """The returns and successes of the episodes that ended inside ``rollout``, as the env reports them at their
+    last step (``("mover", "episode_return")`` and ``("mover", "episode_success")``)."""
     done = rollout.get(("next", "done")).reshape(-1)
-    reward = rollout.get(("next", MOVER, "reward")).reshape(-1)
-    return reward[done].tolist()
+    returns = rollout.get(("next", MOVER, "episode_return")).reshape(-1)
+    successes = rollout.get(("next", MOVER, "episode_success")).reshape(-1)
+    return returns[done].tolist(), successes[done].tolist()
 
 
 def looker_transitions(rollout: TensorDictBase) -> tuple[TensorDict, torch.Tensor]:
@@ -536,6 +537,6 @@ def _pan_rate(rollout: TensorDictBase) -> float:
     return float((rollout.get(("next", LOOKER, "action")) != HOLD).float().mean())
 
 
-def success_rate(returns) -> float:
-    """The fraction of the episodes of ``returns`` that reached the goal (return > 0); ``nan`` without one."""
-    return float(np.mean([r > 0 for r in returns])) if returns else float("nan")
+def success_rate(successes) -> float:
+    """The fraction of ``successes`` (one bool an episode) that are true; ``nan`` without an episode."""
+    return float(np.mean(list(successes))) if len(successes) else float("nan")

@@ -130,7 +130,7 @@ class _Run:
         self.config, self.out, self.device, self.state = config, out, device, state
         self.method = make_method(config, device, start=False)
         self.frames, self.iteration, self.elapsed = 0, 0, 0.0
-        self.window = deque(maxlen=config.success_window)
+        self.window = deque(maxlen=config.success_window)  # (return, success) of the last finished episodes
         # an exact resume puts the rooms where the checkpoint left them; without their state (another number of
         # collection workers, or a checkpoint from before it was saved) the rooms start new episodes from a
         # stream of their own
@@ -143,7 +143,7 @@ class _Run:
         if state is not None:
             restore_method(self.method, state, out / CHECKPOINT)
             self.frames, self.iteration, self.elapsed = state["frames"], state["iteration"], state["time_s"]
-            self.window.extend(state["window"])
+            self.window.extend(map(_episode, state["window"]))
             self.method.env_seed = state["env_seed"] if self.exact else _fresh_env_seed(config, self.frames)
         self.saved_frames = self.frames  # the frames of the checkpoint on disk
 
@@ -230,9 +230,9 @@ class _Run:
             self.iteration + 1,
             self.elapsed + seconds,
         )
-        self.window.extend(step.returns)
-        success = success_rate(self.window)
-        mean_return = float(np.mean(self.window)) if self.window else math.nan
+        self.window.extend(zip(step.returns, step.successes, strict=True))
+        success = success_rate([won for _, won in self.window])
+        mean_return = float(np.mean([ret for ret, _ in self.window])) if self.window else math.nan
         return {
             "frames": self.frames,
             "iteration": self.iteration,
@@ -307,6 +307,12 @@ def _mentions_non_finite(error: Exception) -> bool:
 
 class TrainingError(RuntimeError):
     """Training failed after it had started (not a bad option): the message says where and what is kept."""
+
+
+def _episode(saved) -> tuple[float, bool]:
+    """A checkpoint window's ``(return, success)``; a bare return is from a checkpoint saved before successes were
+    kept, whose rooms paid only on success."""
+    return (float(saved), saved > 0) if isinstance(saved, float) else (float(saved[0]), bool(saved[1]))
 
 
 def _fresh_env_seed(config: TrainConfig, frames: int) -> int:

@@ -5,7 +5,7 @@ import re
 import gymnasium
 import numpy as np
 import pytest
-from conftest import assert_same_view, drive_to_goal
+from conftest import assert_same_view, drive_to_goal, goal_seeking_move
 
 import activeperc_env
 from activeperc_env import LOOKER, MOVER, EnvConfig, Simulator
@@ -125,6 +125,28 @@ def test_truncation_at_max_cycles_with_zero_reward():
         assert not result.terminated[0]
     with pytest.raises(RuntimeError, match="reset"):
         sim.move([0])
+
+
+def test_a_move_reports_its_episodes_outcome_and_a_reset_clears_it():
+    sim = Simulator(EnvConfig(max_cycles=30, num_obstacles=0, goal_distance=2.5), num_envs=2, nthread=1)
+    sim.reset(seeds=[0, 1])
+    summed = np.zeros(2)
+    while not sim.done.all():  # room 0 drives to the goal, room 1 turns in place until max_cycles
+        running = np.flatnonzero(~sim.done)
+        result = sim.move(np.array([goal_seeking_move(sim, 0), 0])[running], ids=running)
+        summed[running] += result.reward
+        np.testing.assert_array_equal(result.episode_return, summed[running])
+        np.testing.assert_array_equal(result.success, result.terminated)
+    assert sim.success.tolist() == [True, False] and summed[0] > 0 == summed[1]
+    np.testing.assert_array_equal(sim.episode_return, summed)
+    copy = Simulator(sim.config, num_envs=2, nthread=1)
+    copy.set_state(sim.get_state())
+    assert copy.success.tolist() == [True, False] and copy.episode_return.tolist() == summed.tolist()
+    old = {key: value for key, value in sim.get_state().items() if key not in ("success", "episode_return")}
+    copy.set_state(old)  # a state saved before outcomes were kept
+    assert not copy.success.any() and not copy.episode_return.any()
+    sim.reset(ids=[0])
+    assert sim.success.tolist() == [False, False] and sim.episode_return.tolist() == [0.0, summed[1]]
 
 
 def test_partial_reset_leaves_other_rooms_alone():

@@ -3,6 +3,7 @@
 import gymnasium
 import numpy as np
 import pytest
+from conftest import goal_seeking_move
 from gymnasium.utils.env_checker import check_env
 
 import activeperc_env  # noqa: F401  (registers the envs)
@@ -48,6 +49,19 @@ def test_info_counts_cycles_and_render_fps_is_the_control_rate():
     assert env.step(2)[4] == {"cycle": 1}
     assert env.metadata["render_fps"] == 2.5
     assert activeperc_env.JointEnv.metadata["render_fps"] == activeperc_env.EnvConfig().control_hz
+
+
+@pytest.mark.parametrize("drive", [True, False])
+def test_the_last_steps_info_holds_the_episodes_outcome(drive):
+    env = gymnasium.make("activeperc/FixedForward-v1", max_cycles=30, num_obstacles=0, goal_distance=2.5)
+    env.reset(seed=0)
+    summed, done = 0.0, False
+    while not done:  # to the goal, or turning in place until max_cycles
+        _, reward, terminated, truncated, info = env.step(goal_seeking_move(env.unwrapped.sim) if drive else 0)
+        summed, done = summed + reward, terminated or truncated
+        assert set(info) == ({"cycle", "episode_success", "episode_return"} if done else {"cycle"})
+    assert info["episode_success"] == terminated == drive and info["episode_return"] == summed
+    env.close()
 
 
 def test_step_outside_an_episode_says_so():

@@ -1,5 +1,7 @@
 """Pieces of the training methods on hand-made inputs: soft update, the looker's transitions, lookers."""
 
+import math
+
 import pytest
 import torch
 from tensordict import TensorDict
@@ -8,7 +10,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
 from activeperc_rl.config import METHODS, TrainConfig
-from activeperc_rl.methods import finished_returns, looker_transitions, make_method, soft_update
+from activeperc_rl.methods import finished_episodes, looker_transitions, make_method, soft_update, success_rate
 from activeperc_rl.models import (
     EpsilonGreedyLooker,
     FixedLooker,
@@ -65,9 +67,13 @@ def test_looker_transitions_pay_the_next_move():
     assert valid[0].tolist() == [True, True, False, True]
 
 
-def test_finished_returns_are_last_rewards():
-    td = rollout([False, True, False, True, False], [0.0, 0.8, 0.0, 0.0, 0.0])
-    assert finished_returns(td) == pytest.approx([0.8, 0.0])
+def test_finished_episodes_are_the_outcomes_the_env_reports():
+    td = rollout([False, True, False, True, False], [0.1, 0.8, 0.1, 0.1, 0.1])  # a dense reward
+    td["next", "mover", "episode_return"] = torch.tensor([0.1, 0.9, 0.1, 0.2, 0.3]).reshape(1, 5, 1)
+    td["next", "mover", "episode_success"] = torch.tensor([False, True, False, False, False]).reshape(1, 5, 1)
+    returns, successes = finished_episodes(td)
+    assert returns == pytest.approx([0.9, 0.2]) and successes == [True, False]  # not the last rewards, nor > 0
+    assert success_rate(successes) == 0.5 and math.isnan(success_rate([]))
 
 
 def observation(n):

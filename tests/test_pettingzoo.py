@@ -78,15 +78,32 @@ def test_reward_arrives_after_the_move_and_is_shared_by_config(looker_reward, sh
     assert env.agent_selection == LOOKER
     assert reward == (expected if shared else 0.0)  # exactly: rewards are float64
     assert not term, "the episode ends at the end of the cycle"
+    assert env.infos == {MOVER: {}, LOOKER: {}}
     env.step(1)
     assert env.terminations[MOVER] and env.terminations[LOOKER]
     assert env.last()[1] == pytest.approx(expected), "the mover's last() carries its reward"
+    outcome = {"episode_success": True, "episode_return": expected}  # the mover's return, in both agents' info
+    assert env.last()[4] == env.infos[LOOKER] == outcome
     parallel = activeperc_env.parallel_env(num_obstacles=0, looker_reward=looker_reward)
     parallel.reset(seed=3)
     for move in moves:
-        _, rewards, terminations, _, _ = parallel.step({MOVER: move, LOOKER: 1})
+        _, rewards, terminations, _, infos = parallel.step({MOVER: move, LOOKER: 1})
+        assert infos == ({MOVER: outcome, LOOKER: outcome} if terminations[MOVER] else {MOVER: {}, LOOKER: {}})
     assert terminations == {MOVER: True, LOOKER: True}
     assert rewards == {MOVER: expected, LOOKER: expected if shared else 0.0}
+
+
+def test_a_truncated_episode_ends_with_its_outcome_in_info():
+    aec, parallel = activeperc_env.env(max_cycles=2), activeperc_env.parallel_env(max_cycles=2)
+    aec.reset(seed=0)
+    parallel.reset(seed=0)
+    for _ in range(2):  # turning in place never reaches the goal
+        aec.step(0)
+        aec.step(1)
+        *_, truncations, infos = parallel.step({MOVER: 0, LOOKER: 1})
+    outcome = {"episode_success": False, "episode_return": 0.0}
+    assert aec.truncations[MOVER] and aec.last()[4] == outcome
+    assert truncations[MOVER] and infos == {MOVER: outcome, LOOKER: outcome}
 
 
 def test_bad_action_names_agent_and_space():

@@ -71,6 +71,8 @@ def test_specs_external_mode():
     assert image.shape == (4, 60, 80, 3) and image.dtype == torch.uint8
     assert env.full_action_spec["mover", "action"].space.n == 3
     assert ("looker", "observation") not in env.observation_spec.keys(True)
+    assert env.observation_spec["mover", "episode_success"].dtype == torch.bool
+    assert env.observation_spec["mover", "episode_return"].shape == (4, 1)
     check_env_specs(env, seed=0)
     env.close()
 
@@ -148,6 +150,15 @@ def test_rollout_auto_resets_finished_rooms():
     assert (done.any(0) & ~done.all(0)).any(), "expected partial resets"
     assert torch.equal(nxt["mover", "reward"] > 0, nxt["terminated"])
     assert torch.equal(nxt["looker", "reward"], nxt["mover", "reward"])  # looker_reward="shared"
+    # the outcome: the running return and success, the episode's at its last step; a reset clears them
+    summed = torch.zeros(n)
+    for t in range(steps):
+        summed += nxt["mover", "reward"][:, t, 0]
+        assert torch.equal(nxt["mover", "episode_return"][:, t, 0], summed)
+        assert torch.equal(nxt["mover", "episode_success"][:, t], nxt["terminated"][:, t])
+        summed[done[:, t]] = 0.0
+    assert not data["mover", "episode_return"][done.roll(1, 1)].any()
+    assert not data["mover", "episode_success"].any()
     # the cycle: s_bar keeps the pan of s, the look turns it by pan_step, s' sees the result
     pan_bar = nxt["looker", "observation", "pan"]
     assert torch.equal(pan_bar, data["mover", "observation", "pan"])
