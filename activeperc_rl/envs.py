@@ -400,6 +400,7 @@ class ActivePerceptionEnv(EnvBase):
         self.load_rooms_state(state)
         observation = TensorDict({"observation": self._observe()}, batch_size=self.batch_size)
         out = TensorDict({MOVER: observation}, batch_size=self.batch_size, device=self.device)
+        out.update({MOVER: self._outcomes()})
         if self._looker is not None:
             out.set(LOOKER, self._looker_spec.zero())
         return out
