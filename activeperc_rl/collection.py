@@ -97,7 +97,7 @@ class Rollouts:
         torch_seed: seed of the workers' torch streams (worker ``j`` adds ``j``).
         workers: 0 (this process steps the rooms) or the number of workers.
         backend: where the workers run: ``"process"`` or ``"ray"``.
-        ray_address: the Ray cluster to join (``""``: a local Ray instance).
+        ray_address: the Ray cluster to join (``"local"``: a Ray instance of its own on this machine).
         device: where the rollouts are returned (and, with ``workers == 0``, where the env runs).
         name: what error messages call these rollouts (``"E2's collector"``).
     """
@@ -114,7 +114,7 @@ class Rollouts:
         torch_seed: int,
         workers: int = 0,
         backend: str = "process",
-        ray_address: str = "",
+        ray_address: str = "local",
         device: torch.device | str = "cpu",
         name: str = "collector",
     ):
@@ -152,6 +152,8 @@ class Rollouts:
                     self.collector = _ray_collector(envs, policy, frames, ray_address)
                 else:
                     self.collector = _process_collector(envs, policy, frames, threads)
+            except OSError:  # this machine could not start a worker (out of processes, say)
+                raise
             except Exception as error:  # TorchRL re-raises a worker's error with the worker's traceback
                 raise WorkerError(f"{name}: a worker failed to start: {type(error).__name__}: {error}") from None
         self._iterator = iter(self.collector)
@@ -261,13 +263,14 @@ def _process_collector(envs: list[WorkerEnv], policy, frames: list[int], threads
 
 
 def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address: str):
-    """TorchRL's Ray collector over ``envs`` on the cluster at ``ray_address`` (``""``: a local Ray instance)."""
+    """TorchRL's Ray collector over ``envs`` on the cluster at ``ray_address`` (``"local"``: a Ray instance of its
+    own)."""
     from torchrl.collectors.distributed import RayCollector
 
-    if ray_address:
-        init = {"address": ray_address}
-    else:
+    if ray_address == "local":
         init = {"num_cpus": max(usable_cpus(), len(envs)), "include_dashboard": False}
+    else:
+        init = {"address": ray_address}
     return RayCollector(
         envs,
         policy,
@@ -277,4 +280,5 @@ def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address
         ray_init_config=init,
         remote_configs={"num_cpus": 1, "memory": None},
         collector_kwargs={"auto_register_policy_transforms": False},
+        weight_sync_schemes={},  # Rollouts sends the weights itself (a second scheme's registration never returns)
     )

@@ -85,9 +85,9 @@ class TrainConfig:
     collector: str = "process"
     """Where the collect_workers run: 'process' (TorchRL's multi-process collector on this machine) or 'ray'
     (TorchRL's Ray collector, on ray_address; num_envs must split evenly over the workers)."""
-    ray_address: str = ""
-    """The Ray cluster the 'ray' collector joins (e.g. 'auto', or the head's 'HOST:6379'); '' starts a local Ray
-    instance on this machine's cores."""
+    ray_address: str = "local"
+    """The Ray cluster the 'ray' collector joins ('auto': the one this machine is in, or the head's 'HOST:6379');
+    'local' starts a Ray instance of the run's own on this machine's cores."""
     gamma: float = 0.99
     """Discount factor of the mover's (and IA2C looker's) A2C."""
     gae_lambda: float = 0.95
@@ -183,7 +183,10 @@ class TrainConfig:
                 f"an int in 0 .. num_envs ({self.num_envs})",
             ),
             "collector": (self.collector in COLLECTORS, f"one of {COLLECTORS}"),
-            "ray_address": (isinstance(self.ray_address, str), "a Ray address (a string)"),
+            "ray_address": (
+                isinstance(self.ray_address, str) and self.ray_address != "",
+                "'local', 'auto' or HOST:PORT",
+            ),
             "gamma": (is_number(self.gamma) and 0.0 <= self.gamma <= 1.0, "a number in [0, 1]"),
             "gae_lambda": (is_number(self.gae_lambda) and 0.0 <= self.gae_lambda <= 1.0, "a number in [0, 1]"),
             "lr": (_finite(self.lr) and self.lr > 0, "a finite number > 0"),

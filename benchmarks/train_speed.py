@@ -58,12 +58,18 @@ GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
 
 
 def bench_method(
-    name: str, num_envs: int | None, seconds: float, warmup_iters: int, device: str = "cpu", collect_workers: int = 0
+    name: str,
+    num_envs: int | None,
+    seconds: float,
+    warmup_iters: int,
+    device: str = "cpu",
+    collect_workers: int = 0,
+    collector: str = "process",
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
-    ``collect_workers`` is :attr:`TrainConfig.collect_workers` (worker processes per environment; their start is
-    not timed).
+    ``collect_workers`` and ``collector`` are :attr:`TrainConfig.collect_workers` (workers per environment; their
+    start is not timed) and :attr:`TrainConfig.collector` (``process`` or ``ray``).
 
     The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
     timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
@@ -74,7 +80,7 @@ def bench_method(
     from activeperc_rl.config import TrainConfig, resolve_device
     from activeperc_rl.methods import make_method
 
-    changes = {"method": name, "device": device, "collect_workers": collect_workers}
+    changes = {"method": name, "device": device, "collect_workers": collect_workers, "collector": collector}
     if num_envs is not None:
         changes["num_envs"] = num_envs
     config = TrainConfig(**changes)
@@ -153,7 +159,7 @@ def combine(results: list[dict]) -> dict:
 
 def main() -> None:
     """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
-    from activeperc_rl.config import DEVICES, METHODS, TrainConfig, resolve_device
+    from activeperc_rl.config import COLLECTORS, DEVICES, METHODS, TrainConfig, resolve_device
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -185,7 +191,13 @@ def main() -> None:
         "--collect-workers",
         type=env_speed.at_least(int, "collect_workers", 0),
         default=0,
-        help="worker processes per env (TrainConfig.collect_workers, 0)",
+        help="workers per env (TrainConfig.collect_workers, 0: collection in this process)",
+    )
+    parser.add_argument(
+        "--collector",
+        choices=COLLECTORS,
+        default="process",
+        help="where the workers run: TorchRL's multi-process collector (process, default) or its Ray collector (ray)",
     )
     parser.add_argument(
         "--warmup-iters",
@@ -228,7 +240,8 @@ def main() -> None:
         print(f"         GPU {machine['gpu']}")
     print(
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
-        f" networks on {args.device}, TrainConfig(collect_workers={args.collect_workers});"
+        f" networks on {args.device},"
+        f" TrainConfig(collect_workers={args.collect_workers}, collector={args.collector!r});"
         f" {args.rounds} round(s), MiniWorld timed before the first and after each"
     )
     print()
@@ -237,7 +250,7 @@ def main() -> None:
         results = {}
         for name in args.methods:
             results[name] = bench_method(
-                name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers
+                name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers, args.collector
             )
             print(f"round {i + 1}: train {name:<14}{results[name]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()
