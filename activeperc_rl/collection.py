@@ -158,6 +158,11 @@ class Rollouts:
                 raise WorkerError(f"{name}: a worker failed to start: {type(error).__name__}: {error}") from None
         self._iterator = iter(self.collector)
 
+    @property
+    def env(self):
+        """The env of an in-process collector (``workers == 0``)."""
+        return self.collector.env
+
     def __iter__(self) -> Rollouts:
         return self
 

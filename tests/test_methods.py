@@ -304,7 +304,7 @@ def test_ia2c_skips_the_looker_update_when_no_look_of_a_rollout_is_valid():
 
 def test_a_collector_that_fails_to_start_closes_its_env(monkeypatch):
     """The env made for a collector holds a GL context and physics threads: a failed Collector must not leak them."""
-    from activeperc_rl import methods
+    from activeperc_rl import collection as methods
 
     made, original = [], methods.make_env
 

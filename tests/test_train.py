@@ -128,13 +128,11 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
 @pytest.mark.parametrize(
     "damage",
     [
-        lambda c: c[0].pop("carrier"),
-        lambda c: c[0].update(carrier=c[0]["carrier"][:1]),
         lambda c: c[0]["rooms"].update(episode_seeds=c[0]["rooms"]["episode_seeds"][:1]),
         lambda c: c.append(c[0]),
         lambda c: c[0]["rooms"]["sim"].update(physics=c[0]["rooms"]["sim"]["physics"][:, :-1]),
     ],
-    ids=["no carrier", "carrier of one room", "seeds of one room", "a collector too many", "shorter state rows"],
+    ids=["seeds of one room", "a collector too many", "shorter state rows"],
 )
 def test_a_collection_state_that_does_not_fit_resumes_the_old_way_with_a_warning(tmp_path, capsys, damage):
     """Rooms' state from another MuJoCo (other state rows) or a damaged checkpoint: the networks still resume, the
