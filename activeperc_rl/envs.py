@@ -309,6 +309,10 @@ class ActivePerceptionEnv(EnvBase):
             index = torch.from_numpy(ids)
             for key, value in self.sim.observe(ids).items():
                 observation[key][index] = torch.from_numpy(value)
+        return self._reset_output(observation)
+
+    def _reset_output(self, observation: TensorDictBase) -> TensorDict:
+        """What a reset returns: the mover's ``observation``, the rooms' outcomes and the looker's placeholders."""
         out = TensorDict({MOVER: {"observation": observation}}, batch_size=self.batch_size, device=self.device)
         out.update({MOVER: self._outcomes()})
         if self._looker is not None:
@@ -398,12 +402,7 @@ class ActivePerceptionEnv(EnvBase):
         """Load ``state`` (:meth:`rooms_state`) and return the rooms' observation as a reset does, starting no
         episode: ``reset(rooms_state=...)``, how a collector resumes where a checkpoint left its rooms."""
         self.load_rooms_state(state)
-        observation = TensorDict({"observation": self._observe()}, batch_size=self.batch_size)
-        out = TensorDict({MOVER: observation}, batch_size=self.batch_size, device=self.device)
-        out.update({MOVER: self._outcomes()})
-        if self._looker is not None:
-            out.set(LOOKER, self._looker_spec.zero())
-        return out
+        return self._reset_output(self._observe())
 
     def close(self, *, raise_if_closed: bool = True) -> None:
         """Release the simulator's renderer."""
