@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -171,7 +172,10 @@ class Rollouts:
         with self._named_failures():
             if self.workers:
                 self._send_weights()
-            rollout = next(self._iterator)
+            with warnings.catch_warnings():
+                # Ray's: it cannot see that Rollouts sends the weights itself (_send_weights)
+                warnings.filterwarnings("ignore", "RayCollector iteration started before weight synchronization")
+                rollout = next(self._iterator)
         if rollout.ndim == 3:  # Ray stacks its workers' rollouts
             rollout = rollout.reshape(-1, rollout.shape[-1])
         return rollout.to(self.device)
@@ -273,9 +277,10 @@ def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address
     from torchrl.collectors.distributed import RayCollector
 
     if ray_address == "local":
-        init = {"num_cpus": max(usable_cpus(), len(envs)), "include_dashboard": False}
+        init = {"num_cpus": usable_cpus(), "include_dashboard": False}
     else:
         init = {"address": ray_address}
+    init["log_to_driver"] = False  # each worker would print its collector's repr; its errors reach us as exceptions
     return RayCollector(
         envs,
         policy,
@@ -283,7 +288,9 @@ def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address
         total_frames=2**62,  # unbounded: the trainer decides when to stop
         sync=True,
         ray_init_config=init,
-        remote_configs={"num_cpus": 1, "memory": None},
+        # a run's collectors take turns (E1's, then E2's): its workers reserve no CPU of the cluster, which a
+        # cluster of fewer CPUs than workers would leave them waiting for, and Ray spreads them over its nodes
+        remote_configs={"num_cpus": 0, "memory": None, "scheduling_strategy": "SPREAD"},
         collector_kwargs={"auto_register_policy_transforms": False},
         weight_sync_schemes={},  # Rollouts sends the weights itself (a second scheme's registration never returns)
     )

@@ -3,7 +3,9 @@
 What it measures (networks on ``--device``, the CPU by default; the default
 :class:`~activeperc_rl.config.TrainConfig` but for the method and ``--num-envs``):
 
-1. For each method of ``--methods``: training frames/s, collection and learning together. The method is built
+1. For each method of ``--methods`` and each collector of ``--collector`` (``inprocess``: this process steps the
+   rooms; ``process`` and ``ray``: ``--workers`` workers per env of TorchRL's multi-process or Ray collector, a
+   local Ray instance on this machine's CPUs): training frames/s, collection and learning together. The method is built
    with :func:`~activeperc_rl.methods.make_method`, ``--warmup-iters`` iterations run untimed, then
    :meth:`Method.iterate` runs until ``--seconds`` have passed; the figure is the sum of ``Iteration.frames``
    (environment cycles over every room of every environment, E1 and E2 both for ``meta``) divided by the wall
@@ -31,7 +33,7 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
     python benchmarks/train_speed.py                      # 20 s per method, 3 rounds (about 7 minutes)
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
     python benchmarks/train_speed.py --seconds 5 --rounds 1 --json
-    python benchmarks/train_speed.py --methods meta --collect-workers 2   # collection in 2 processes per env
+    python benchmarks/train_speed.py --methods meta --collector inprocess process ray --workers 2
 """
 
 from __future__ import annotations
@@ -130,6 +132,14 @@ def bench_method(
     return result
 
 
+WIDTH = 24  # of a run's label in the report
+
+
+def run_label(method: str, collector: str, workers: int) -> str:
+    """What the report calls ``method`` collected by ``collector``: the method's name alone when in-process."""
+    return method if collector == "inprocess" else f"{method} [{collector} x{workers}]"
+
+
 def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
     """Per-round ratios frames/s over MiniWorld's steps/s of every method (:func:`peer.bracketed_ratios`), their
     medians, and the goals judged on ``meta``'s median (``None`` when they cannot be judged)."""
@@ -188,16 +198,19 @@ def main() -> None:
         "--device", choices=DEVICES, default="cpu", help="where the networks run: cpu (default), cuda, or auto"
     )
     parser.add_argument(
+        "--workers",
         "--collect-workers",
-        type=env_speed.at_least(int, "collect_workers", 0),
-        default=0,
-        help="workers per env (TrainConfig.collect_workers, 0: collection in this process)",
+        type=env_speed.at_least(int, "workers", 1),
+        default=2,
+        help="workers per env of the process and ray collectors (TrainConfig.collect_workers; 2)",
     )
     parser.add_argument(
         "--collector",
-        choices=COLLECTORS,
-        default="process",
-        help="where the workers run: TorchRL's multi-process collector (process, default) or its Ray collector (ray)",
+        nargs="+",
+        choices=("inprocess", *COLLECTORS),
+        default=["inprocess"],
+        help="where each method collects, each timed in turn: in this process (inprocess, default), TorchRL's"
+        " multi-process collector (process) or its Ray collector on a local Ray instance (ray)",
     )
     parser.add_argument(
         "--warmup-iters",
@@ -241,24 +254,28 @@ def main() -> None:
     print(
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
         f" networks on {args.device},"
-        f" TrainConfig(collect_workers={args.collect_workers}, collector={args.collector!r});"
+        f" collectors {', '.join(args.collector)} ({args.workers} workers each but inprocess);"
         f" {args.rounds} round(s), MiniWorld timed before the first and after each"
     )
     print()
 
+    runs = [(name, collector) for name in args.methods for collector in args.collector]
+
     def measure(i: int) -> dict[str, dict]:
         results = {}
-        for name in args.methods:
-            results[name] = bench_method(
-                name, args.num_envs, args.seconds, args.warmup_iters, args.device, args.collect_workers, args.collector
+        for name, collector in runs:
+            label = run_label(name, collector, args.workers)
+            workers, backend = (0, "process") if collector == "inprocess" else (args.workers, collector)
+            results[label] = bench_method(
+                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend
             )
-            print(f"round {i + 1}: train {name:<14}{results[name]['frames_per_s']:9.1f} frames/s", flush=True)
+            print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()
         return results
 
     measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads)
     rounds, peer_rates = measured.ours, measured.peer
-    ours = {name: combine([r[name] for r in rounds]) for name in args.methods}
+    ours = {label: combine([r[label] for r in rounds]) for label in rounds[0]}
     print()
 
     how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
@@ -272,7 +289,7 @@ def main() -> None:
         )
         if "obstacles" in result:
             detail += f", phase with {result['obstacles']} obstacles"
-        print(f"train {name:<14}{result['frames_per_s']:9.1f} frames/s   {detail}")
+        print(f"train {name:<{WIDTH}}{result['frames_per_s']:9.1f} frames/s   {detail}")
     print(peer.describe(measured))
     print()
 
@@ -284,11 +301,16 @@ def main() -> None:
             f"meta  one iteration: {per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
             f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
         )
+    for name, collector in runs:
+        if collector != "inprocess" and name in ours:  # the same method in this process, round by round
+            label = run_label(name, collector, args.workers)
+            gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
+            print(f"gain  {label:<{WIDTH}}{peer.spread(gain, 2, 'x')} the frames/s of {name} in-process")
     per_round, ratios, goals = summarise(rounds, peer_rates)
     if ratios:
         print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
         for name, values in per_round.items():
-            print(f"ratio {name:<14}{peer.spread(values, 2, 'x')}")
+            print(f"ratio {name:<{WIDTH}}{peer.spread(values, 2, 'x')}")
     else:
         print("ratios: unknown, MiniWorld could not be measured")
     for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
