@@ -55,8 +55,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
 
 import env_speed  # noqa: E402 (needs the path above)
+import harness  # noqa: E402
 import peer  # noqa: E402
-from env_speed import add_timing_flags, at_least  # noqa: E402
+from harness import add_timing_flags, at_least  # noqa: E402
 
 from activeperc_rl.atomic import atomic_path, check_writable  # noqa: E402
 
@@ -108,7 +109,7 @@ def bench_rooms(num_envs: int, seconds: float, warmup: float, seed: int) -> floa
         return num_envs
 
     try:
-        return env_speed.timed_rate(step, seconds, warmup)
+        return harness.timed_rate(step, seconds, warmup)
     finally:
         rooms.close()
 
@@ -137,9 +138,9 @@ def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[
         return 1
 
     try:
-        env_speed.timed_rate(cycle, warmup, 0.0)  # the warm-up, not counted
+        harness.timed_rate(cycle, warmup, 0.0)  # the warm-up, not counted
         spent, cycles = dict.fromkeys(spent, 0.0), 0
-        rate = env_speed.timed_rate(cycle, seconds, 0.0)
+        rate = harness.timed_rate(cycle, seconds, 0.0)
     finally:
         sim.close()
     return {part: total / cycles for part, total in spent.items()} | {"cycles_per_s": rate * num_envs}
@@ -263,7 +264,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
 
-    machine = env_speed.machine_info()
+    machine = harness.machine_info()
     print("activeperc batched env throughput vs rooms")
     cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
     print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
@@ -325,18 +326,18 @@ def main(argv: list[str] | None = None) -> dict:
     print()
 
     per_round = (
-        {n: peer.bracketed_ratios([r[n] for r in rounds], measured.peer) for n in rates} if measured.peer else {}
+        {n: harness.bracketed_ratios([r[n] for r in rounds], measured.peer) for n in rates} if measured.peer else {}
     )
     ratios = {n: statistics.median(values) for n, values in per_round.items()}
     for n, values in per_round.items():
-        print(f"ratio N={n:<5} {peer.spread(values, 2, 'x')} MiniWorld raw steps/s")
+        print(f"ratio N={n:<5} {harness.spread(values, 2, 'x')} MiniWorld raw steps/s")
     goal = f"N={GOAL_NUM_ENVS} >= {GOAL_MULTIPLE:g}x MiniWorld raw env speed on 2 cores"
     met = ratios[GOAL_NUM_ENVS] >= GOAL_MULTIPLE if GOAL_NUM_ENVS in ratios else None
     verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
     if met is None:
         verdict += " (MiniWorld not measured)" if not peer_rate else f" (N={GOAL_NUM_ENVS} not timed)"
     else:
-        met_in = peer.rounds_met(per_round[GOAL_NUM_ENVS], GOAL_MULTIPLE)
+        met_in = harness.rounds_met(per_round[GOAL_NUM_ENVS], GOAL_MULTIPLE)
         verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
     print(f"goal  {goal}: {verdict}")
 
@@ -355,7 +356,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{alone}; per cycle: " + ", ".join(f"{part} {1e3 * split[part]:.1f} ms" for part in parts))
         print(
             f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator, same round: "
-            f"{peer.spread([1e3 * value for value in extra], 1, ' ms')} per cycle"
+            f"{harness.spread([1e3 * value for value in extra], 1, ' ms')} per cycle"
         )
 
     rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]

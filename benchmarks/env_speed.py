@@ -41,9 +41,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import os
-import platform
 import statistics
 import sys
 import time
@@ -52,7 +49,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # peer.py sits next to this file
 
-import peer  # noqa: E402 (needs the path above)
+import harness  # noqa: E402 (needs the path above)
+import peer  # noqa: E402
+from harness import add_timing_flags, machine_info, timed_rate  # noqa: E402
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
@@ -60,37 +59,6 @@ GOALS = (  # (figure, the multiple of MiniWorld's steps/s it must reach, the goa
     ("aec", 1.0, "aec >= 1x MiniWorld"),
     ("core_n64", 3.0, "core N=64 >= 3x MiniWorld"),
 )
-
-
-def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
-    """Call ``step`` for ``warmup`` seconds untimed, then for ``seconds``; return units per second.
-
-    ``step`` returns how many units (cycles or steps) one call did.
-    """
-    end = time.perf_counter() + warmup
-    while time.perf_counter() < end:
-        step()
-    units = 0
-    start = time.perf_counter()
-    while True:
-        units += step()
-        elapsed = time.perf_counter() - start
-        if elapsed >= seconds:
-            return units / elapsed
-
-
-def machine_info() -> dict:
-    """CPU count, platform and Python version of this machine."""
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return {
-        "cpu_count": os.cpu_count(),
-        "usable_cpus": usable,
-        "processor": platform.processor() or platform.machine(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
-        "lp_num_threads": os.environ.get("LP_NUM_THREADS", "llvmpipe's default"),
-    }
 
 
 def gl_renderer_name(sim) -> str:
@@ -278,59 +246,15 @@ def measure_round(
 
 
 def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None, versions=(1,)):
-    """Per-round ratios ours/MiniWorld (:func:`peer.bracketed_ratios`) of every figure (keys ``FIGURE_vVERSION``),
+    """Per-round ratios ours/MiniWorld (:func:`harness.bracketed_ratios`) of every figure (keys ``FIGURE_vVERSION``),
     their medians, and the two goals of each room version judged on the medians (all empty when MiniWorld was not
     measured)."""
     if not peer_rates:
         return {}, {}, {}
-    per_round = {key: peer.bracketed_ratios([r[key] for r in rounds], peer_rates) for key in rounds[0]}
+    per_round = {key: harness.bracketed_ratios([r[key] for r in rounds], peer_rates) for key in rounds[0]}
     medians = {key: statistics.median(values) for key, values in per_round.items()}
     goals = {f"v{v} {name}": medians[f"{key}_v{v}"] >= multiple for v in versions for key, multiple, name in GOALS}
     return per_round, medians, goals
-
-
-def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callable[[str], int | float]:
-    """An argparse ``type``: converts to ``kind`` and refuses values below ``low`` (or equal, if ``strict``), and
-    infinity and NaN."""
-
-    def convert(text: str) -> int | float:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be {kind.__name__}, got {text!r}") from None
-        if not math.isfinite(value) or value < low or (strict and value == low):
-            raise argparse.ArgumentTypeError(f"{name} must be {'>' if strict else '>='} {low:g}, got {text}")
-        return value
-
-    return convert
-
-
-def add_timing_flags(parser: argparse.ArgumentParser, seconds: float, warmup: float, per: str) -> None:
-    """The flags every env benchmark takes, checked: ``--seconds`` timed per ``per`` (e.g. 'figure'), ``--rounds``
-    with MiniWorld timed around each, ``--warmup`` before each timing and ``--seed``; the given defaults."""
-    parser.add_argument(
-        "--seconds",
-        type=at_least(float, "seconds", 0, strict=True),
-        default=seconds,
-        help=f"timed seconds per {per} ({seconds:g})",
-    )
-    parser.add_argument(
-        "--rounds", type=at_least(int, "rounds", 1), default=3, help=f"rounds of every {per}, MiniWorld around each (3)"
-    )
-    parser.add_argument(
-        "--warmup",
-        type=at_least(float, "warmup", 0),
-        default=warmup,
-        help=f"untimed seconds before each timing ({warmup:g})",
-    )
-    parser.add_argument(
-        "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
-    )
-    parser.add_argument(
-        "--peer-lp-threads",
-        type=at_least(int, "peer-lp-threads", 0),
-        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
-    )
 
 
 def main() -> None:
@@ -399,11 +323,11 @@ def main() -> None:
     if ratios:
         print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
         for key, values in per_round.items():
-            print(f"ratio {key:<19}{peer.spread(values, 2, 'x')}")
+            print(f"ratio {key:<19}{harness.spread(values, 2, 'x')}")
         for version in args.versions:
             for key, multiple, name in GOALS:
                 verdict = "MET" if goals[f"v{version} {name}"] else "NOT MET"
-                met = peer.rounds_met(per_round[f"{key}_v{version}"], multiple)
+                met = harness.rounds_met(per_round[f"{key}_v{version}"], multiple)
                 print(f"goal  v{version} {name}: {verdict} (median; {met})")
     else:
         print("ratios and goals: unknown, MiniWorld could not be measured")

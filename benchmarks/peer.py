@@ -3,7 +3,7 @@
 The machine's speed drifts from minute to minute (other work on the host), and MiniWorld drifts with it, so a
 ratio of two figures taken a minute apart says more about the drift than about us. The benchmarks therefore
 time in rounds: MiniWorld, then a round of ours, then MiniWorld again, and so on, and divide each round of ours
-by the mean of the two MiniWorld figures around it (:func:`bracketed_ratios`). :class:`MiniWorld` keeps one
+by the mean of the two MiniWorld figures around it (:func:`harness.bracketed_ratios`). :class:`MiniWorld` keeps one
 MiniWorld env alive in a child process for that, so each of its measurements costs only its own seconds; a GL
 failure in the child cannot stop our measurements, it becomes a :class:`PeerUnavailable` that says why.
 
@@ -201,30 +201,6 @@ def describe(measured: Rounds, width: int = 34) -> str:
     )
 
 
-def bracketed_ratios(ours: list[float], peer: list[float]) -> list[float]:
-    """Each round's figure of ours over the mean of the peer's figures just before and just after that round.
-
-    ``peer`` holds one more figure than ``ours``: the peer was timed before the first round and after every round.
-    """
-    if len(peer) != len(ours) + 1:
-        raise ValueError(f"{len(peer)} peer figures for {len(ours)} rounds: expected {len(ours) + 1}")
-    return [mine / ((before + after) / 2) for mine, before, after in zip(ours, peer, peer[1:], strict=False)]
-
-
-def rounds_met(ratios: list[float], multiple: float) -> str:
-    """How often a goal of ``multiple`` was reached: ``"met in k of n rounds"``."""
-    return f"met in {sum(ratio >= multiple for ratio in ratios)} of {len(ratios)} rounds"
-
-
-def spread(values: list[float], digits: int, unit: str = "") -> str:
-    """``"median (v1, v2, ...)"`` with ``digits`` decimals and ``unit`` after each number; the median alone for one
-    value."""
-    median = f"{statistics.median(values):.{digits}f}{unit}"
-    if len(values) == 1:
-        return median
-    return f"{median} ({', '.join(f'{v:.{digits}f}{unit}' for v in values)})"
-
-
 def serve(seed: int) -> None:
     """Child side: build the env, announce it, then time it for each ``"seconds warmup"`` line read from stdin."""
     import pyglet
@@ -232,7 +208,7 @@ def serve(seed: int) -> None:
     pyglet.options["headless"] = True  # before miniworld imports pyglet's GL
     import gymnasium
     import miniworld
-    from env_speed import timed_rate  # the same timing loop as ours; env_speed sits next to this file
+    from harness import timed_rate  # the same timing loop as ours; harness.py sits next to this file
 
     env = gymnasium.make(PEER_ENV, obs_width=OBS_WIDTH, obs_height=OBS_HEIGHT)
     obs, _ = env.reset(seed=seed)

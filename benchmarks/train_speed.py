@@ -49,7 +49,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
 
-import env_speed  # noqa: E402 (needs the path above)
+import harness  # noqa: E402 (needs the path above)
 import peer  # noqa: E402
 
 GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
@@ -141,12 +141,12 @@ def run_label(method: str, collector: str, workers: int) -> str:
 
 
 def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
-    """Per-round ratios frames/s over MiniWorld's steps/s of every method (:func:`peer.bracketed_ratios`), their
+    """Per-round ratios frames/s over MiniWorld's steps/s of every method (:func:`harness.bracketed_ratios`), their
     medians, and the goals judged on ``meta``'s median (``None`` when they cannot be judged)."""
     if not peer_rates:
         return {}, {}, {goal: None for goal, _ in GOALS}
     per_round = {
-        name: peer.bracketed_ratios([r[name]["frames_per_s"] for r in rounds], peer_rates) for name in rounds[0]
+        name: harness.bracketed_ratios([r[name]["frames_per_s"] for r in rounds], peer_rates) for name in rounds[0]
     }
     medians = {name: statistics.median(values) for name, values in per_round.items()}
     goals = {goal: (medians["meta"] >= multiple if "meta" in medians else None) for goal, multiple in GOALS}
@@ -177,19 +177,19 @@ def main() -> None:
     )
     parser.add_argument(
         "--seconds",
-        type=env_speed.at_least(float, "seconds", 0, strict=True),
+        type=harness.at_least(float, "seconds", 0, strict=True),
         default=20.0,
         help="timed seconds per method and for MiniWorld (20)",
     )
     parser.add_argument(
         "--num-envs",
-        type=env_speed.at_least(int, "num_envs", 1),
+        type=harness.at_least(int, "num_envs", 1),
         default=None,
         help="rooms per environment (the TrainConfig default)",
     )
     parser.add_argument(
         "--threads",
-        type=env_speed.at_least(int, "threads", 0),
+        type=harness.at_least(int, "threads", 0),
         default=TrainConfig().torch_threads,
         help="torch threads while collecting, as TrainConfig.torch_threads (0: torch's default; default: as training);"
         " learning runs on TrainConfig.learner_threads (all usable CPUs), as in training",
@@ -200,7 +200,7 @@ def main() -> None:
     parser.add_argument(
         "--workers",
         "--collect-workers",
-        type=env_speed.at_least(int, "workers", 1),
+        type=harness.at_least(int, "workers", 1),
         default=2,
         help="workers per env of the process and ray collectors (TrainConfig.collect_workers; 2)",
     )
@@ -214,13 +214,13 @@ def main() -> None:
     )
     parser.add_argument(
         "--warmup-iters",
-        type=env_speed.at_least(int, "warmup_iters", 0),
+        type=harness.at_least(int, "warmup_iters", 0),
         default=2,
         help="untimed iterations before each timing (2)",
     )
     parser.add_argument(
         "--rounds",
-        type=env_speed.at_least(int, "rounds", 1),
+        type=harness.at_least(int, "rounds", 1),
         default=3,
         help="rounds of the methods, MiniWorld timed around each (3)",
     )
@@ -239,7 +239,7 @@ def main() -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    machine = env_speed.machine_info()
+    machine = harness.machine_info()
     machine |= {"torch": torch.__version__, "torch_threads": torch.get_num_threads(), "device": args.device}
     machine["keep_freed_memory"] = keep_freed_memory()  # as activeperc-train does
     if torch.cuda.is_available():
@@ -305,18 +305,18 @@ def main() -> None:
         if collector != "inprocess" and name in ours:  # the same method in this process, round by round
             label = run_label(name, collector, args.workers)
             gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
-            print(f"gain  {label:<{WIDTH}}{peer.spread(gain, 2, 'x')} the frames/s of {name} in-process")
+            print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
     per_round, ratios, goals = summarise(rounds, peer_rates)
     if ratios:
         print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
         for name, values in per_round.items():
-            print(f"ratio {name:<{WIDTH}}{peer.spread(values, 2, 'x')}")
+            print(f"ratio {name:<{WIDTH}}{harness.spread(values, 2, 'x')}")
     else:
         print("ratios: unknown, MiniWorld could not be measured")
     for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
         verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
         if met is not None:
-            met_in = peer.rounds_met(per_round["meta"], multiple)
+            met_in = harness.rounds_met(per_round["meta"], multiple)
             verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
         print(f"goal  {goal}: {verdict}")
 

@@ -168,13 +168,14 @@ def peer():
         sys.modules["peer"] = previous
 
 
-def test_each_round_is_divided_by_the_peer_figures_around_it(peer):
-    assert peer.bracketed_ratios([300.0, 600.0], [100.0, 200.0, 400.0]) == [2.0, 2.0]
+def test_each_round_is_divided_by_the_peer_figures_around_it():
+    harness = load_script("harness")
+    assert harness.bracketed_ratios([300.0, 600.0], [100.0, 200.0, 400.0]) == [2.0, 2.0]
     with pytest.raises(ValueError, match="2 peer figures for 2 rounds: expected 3"):
-        peer.bracketed_ratios([1.0, 2.0], [1.0, 2.0])
-    assert peer.spread([0.5, 0.9, 0.7], 2, "x") == "0.70x (0.50x, 0.90x, 0.70x)"
-    assert peer.spread([0.5], 1) == "0.5"
-    assert peer.rounds_met([0.9, 1.0, 1.2], 1.0) == "met in 2 of 3 rounds"
+        harness.bracketed_ratios([1.0, 2.0], [1.0, 2.0])
+    assert harness.spread([0.5, 0.9, 0.7], 2, "x") == "0.70x (0.50x, 0.90x, 0.70x)"
+    assert harness.spread([0.5], 1) == "0.5"
+    assert harness.rounds_met([0.9, 1.0, 1.2], 1.0) == "met in 2 of 3 rounds"
 
 
 def test_the_peer_line_gives_every_figure_or_why_there_is_none(peer):
