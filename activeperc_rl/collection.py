@@ -18,6 +18,7 @@ collector on a Ray cluster) whose rollouts are joined along the rooms.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import threading
@@ -125,6 +126,8 @@ class Rollouts:
             raise ValueError(f"workers={workers!r} is invalid: expected an int in 0 .. num_envs={num_envs}")
         if backend == "ray" and workers and num_envs % workers:
             raise ValueError(f"num_envs={num_envs} does not split evenly over {workers} Ray workers")
+        if backend == "ray" and workers and importlib.util.find_spec("ray") is None:
+            raise ValueError("collector='ray' needs Ray, which is not installed: pip install -e '.[distributed]'")
         self.device, self.workers, self.backend, self.name = torch.device(device), workers, backend, name
         self._policy, self._looker = policy, looker
         if workers == 0:

@@ -238,3 +238,13 @@ def test_ray_needs_rooms_that_split_evenly():
     with pytest.raises(ValueError, match="num_envs=5 does not split evenly over 2 Ray workers"):
         Rollouts(mover_that_always_picks(2), None, dataclasses.asdict(SMALL), 5, 4, workers=2, backend="ray",
                  env_seed=0, torch_seed=0)  # fmt: skip
+
+
+def test_ray_without_ray_installed_says_how_to_install_it(monkeypatch):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else find_spec(name, *a))
+    with pytest.raises(ValueError, match=r"collector='ray' needs Ray, which is not installed: pip install"):
+        Rollouts(mover_that_always_picks(2), None, dataclasses.asdict(SMALL), 4, 4, workers=2, backend="ray",
+                 env_seed=0, torch_seed=0)  # fmt: skip
