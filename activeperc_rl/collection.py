@@ -179,7 +179,10 @@ class Rollouts:
                 # Ray's: it cannot see that Rollouts sends the weights itself (_send_weights)
                 warnings.filterwarnings("ignore", "RayCollector iteration started before weight synchronization")
                 rollout = next(self._iterator)
-        if rollout.ndim == 3:  # Ray stacks its workers' rollouts
+        if rollout.ndim == 3:  # Ray stacks its workers' rollouts, each numbering its trajectories from 0
+            ids = rollout["collector", "traj_ids"]
+            worker = torch.arange(self.workers, device=ids.device).view(-1, 1, 1)
+            rollout["collector", "traj_ids"] = ids * self.workers + worker
             rollout = rollout.reshape(-1, rollout.shape[-1])
         return rollout.to(self.device)
 

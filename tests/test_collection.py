@@ -60,25 +60,28 @@ class FailingLooker(nn.Module):
         return FixedLooker()(tensordict)
 
 
-def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights():
+@pytest.mark.parametrize("backend, rooms", [("process", 5), ("ray", 4)])  # Ray splits the rooms evenly only
+def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights(backend, rooms):
     actor = mover_that_always_picks(2)
     policy = TensorDictSequential(actor, FixedLooker())
     config = dataclasses.asdict(SMALL)
-    collector = Rollouts(policy, None, config, 5, rollout_length=4, workers=2, env_seed=7, torch_seed=0)
+    collector = Rollouts(
+        policy, None, config, rooms, rollout_length=4, workers=2, backend=backend, env_seed=7, torch_seed=0
+    )
     try:
         first = next(collector)
         pick(actor, 0)  # the workers must see this change before the next rollout
         second = next(collector)
     finally:
         collector.shutdown()
-    assert first.batch_size == second.batch_size == torch.Size([5, 4])
+    assert first.batch_size == second.batch_size == torch.Size([rooms, 4])
     assert (first["mover", "action"] == 2).all() and (second["mover", "action"] == 0).all()
-    # room i of the split env starts in the layout of room i of one env of all five rooms
-    reference = make_env(5, seed=7, **dataclasses.asdict(SMALL)).reset()
+    # room i of the split env starts in the layout of room i of one env of all the rooms
+    reference = make_env(rooms, seed=7, **dataclasses.asdict(SMALL)).reset()
     assert torch.equal(first["mover", "observation", "image"][:, 0], reference["mover", "observation", "image"])
     # trajectory ids stay unique across the workers' rooms
     ids = first["collector", "traj_ids"][:, 0]
-    assert len(set(ids.tolist())) == 5
+    assert len(set(ids.tolist())) == rooms
 
 
 def test_each_worker_samples_from_a_stream_of_its_own():

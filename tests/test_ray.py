@@ -1,6 +1,5 @@
 """Collection on Ray (``--collector ray``) in a local Ray instance of two CPUs: the runs of the process collector."""
 
-import dataclasses
 import os
 import signal
 import subprocess
@@ -8,18 +7,12 @@ import sys
 
 import pytest
 import ray
-import torch
 from conftest import assert_same_run, default_stop_signals
-from tensordict.nn import TensorDictSequential
-from test_collection import SMALL, mover_that_always_picks, pick
 from test_train import TINY, read_metrics, run_cli, wait_for_rows
 
 from activeperc_rl import cli
 from activeperc_rl.checkpoint import load_checkpoint
-from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import METHODS
-from activeperc_rl.envs import make_env
-from activeperc_rl.models import FixedLooker
 
 RAY = ["--collect-workers", "2", "--collector", "ray"]
 
@@ -30,24 +23,6 @@ def local_ray():
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
-
-
-def test_ray_workers_keep_their_rooms_layouts_and_act_with_the_current_weights():
-    actor = mover_that_always_picks(2)
-    policy = TensorDictSequential(actor, FixedLooker())
-    collector = Rollouts(
-        policy, None, dataclasses.asdict(SMALL), 4, 4, workers=2, backend="ray", env_seed=7, torch_seed=0
-    )
-    try:
-        first = next(collector)
-        pick(actor, 0)  # the workers must see this change before the next rollout
-        second = next(collector)
-    finally:
-        collector.shutdown()
-    assert first.batch_size == second.batch_size == torch.Size([4, 4])
-    assert (first["mover", "action"] == 2).all() and (second["mover", "action"] == 0).all()
-    reference = make_env(4, seed=7, **dataclasses.asdict(SMALL)).reset()
-    assert torch.equal(first["mover", "observation", "image"][:, 0], reference["mover", "observation", "image"])
 
 
 @pytest.mark.parametrize("method", sorted(set(METHODS) - {"meta"}))
