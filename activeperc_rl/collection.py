@@ -298,5 +298,5 @@ def _ray_collector(envs: list[WorkerEnv], policy, frames: list[int], ray_address
         # cluster of fewer CPUs than workers would leave them waiting for, and Ray spreads them over its nodes
         remote_configs={"num_cpus": 0, "memory": None, "scheduling_strategy": "SPREAD"},
         collector_kwargs={"auto_register_policy_transforms": False},
-        weight_sync_schemes={},  # Rollouts sends the weights itself (a second scheme's registration never returns)
+        weight_sync_schemes={},  # Rollouts sends the weights itself, before every rollout
     )
