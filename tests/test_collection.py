@@ -168,16 +168,11 @@ def test_training_with_workers_repeats_itself_also_across_a_resume(tmp_path):
     assert int(rows[-1]["frames"]) >= 300
 
 
-@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["ctrl-c", "sigterm", "sighup"])
-def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop):
-    """SIGINT (a terminal's Ctrl-C), SIGTERM (a scheduler's stop) or SIGHUP (a closing terminal) to the whole
-    process group, across curriculum's switch of environments."""
-    out = tmp_path / "run"
-    command = [
-        sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
-        "--method", "curriculum", "--curriculum-fraction", "0.00003", "--collect-workers", "2",
-    ]  # fmt: skip
-    process = subprocess.Popen(
+def start_run(out, *args) -> subprocess.Popen:
+    """``activeperc-train`` of the tiny config and ``args`` into ``out``, for ever, in a session of its own with the
+    default stop signals (output and errors in one text pipe)."""
+    command = [sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000", *args]
+    return subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -185,6 +180,14 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
         start_new_session=True,
         preexec_fn=default_stop_signals,
     )
+
+
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["ctrl-c", "sigterm", "sighup"])
+def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop):
+    """SIGINT (a terminal's Ctrl-C), SIGTERM (a scheduler's stop) or SIGHUP (a closing terminal) to the whole
+    process group, across curriculum's switch of environments."""
+    out = tmp_path / "run"
+    process = start_run(out, "--method", "curriculum", "--curriculum-fraction", "0.00003", "--collect-workers", "2")
     wait_for_rows(out, 12, timeout=240)  # the switch to obstacles comes after 10 rows
     os.killpg(process.pid, stop)
     output, _ = process.communicate(timeout=120)

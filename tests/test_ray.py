@@ -2,13 +2,12 @@
 
 import os
 import signal
-import subprocess
-import sys
 
 import pytest
 import ray
-from conftest import assert_same_run, default_stop_signals
-from test_train import TINY, read_metrics, run_cli, wait_for_rows
+from conftest import assert_same_run
+from test_collection import start_run
+from test_train import read_metrics, run_cli, wait_for_rows
 
 from activeperc_rl import cli
 from activeperc_rl.checkpoint import load_checkpoint
@@ -46,18 +45,7 @@ def test_meta_on_ray_is_the_run_of_the_process_collector_also_across_a_resume(tm
 def test_ctrl_c_saves_a_checkpoint_of_a_ray_run_that_resumes(tmp_path):
     """Ctrl-C reaches the run's process group, Ray's own processes included: the run saves, then stops Ray."""
     out = tmp_path / "run"
-    command = [
-        sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
-        "--method", "meta", *RAY,
-    ]  # fmt: skip
-    process = subprocess.Popen(
-        command,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        start_new_session=True,
-        preexec_fn=default_stop_signals,
-    )
+    process = start_run(out, "--method", "meta", *RAY)
     try:
         wait_for_rows(out, 3, timeout=240)
         os.killpg(process.pid, signal.SIGINT)
