@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,9 +66,9 @@ def _draw(rng: np.random.Generator, num_obstacles: int, goal_distance: float) ->
     start = np.array([rng.uniform(-half - X_JITTER, -half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
     goal = np.array([rng.uniform(half - X_JITTER, half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
     line = goal - start
-    bearing = float(np.arctan2(line[1], line[0]))
+    bearing = math.atan2(line[1], line[0])  # the math module's, not numpy's: see _distance
     heading = bearing + rng.uniform(-HEADING_SPREAD, HEADING_SPREAD)
-    normal = np.array([-line[1], line[0]]) / np.linalg.norm(line)
+    normal = np.array([-line[1], line[0]]) / _distance(goal, start)
     occluders: list[np.ndarray] = []
     for i in range(num_obstacles):
         along = (0.35, 0.65) if i < 3 else (0.25, 0.75)  # a fourth to sixth box needs more room
@@ -96,9 +97,16 @@ def _fits(xy: np.ndarray, start: np.ndarray, goal: np.ndarray, others: list[np.n
     half = OCCLUDER_HALF[0]
     if abs(xy[0]) > ROOM_HALF_X - half - 0.05 or abs(xy[1]) > ROOM_HALF_Y - half - 0.05:
         return False
-    clearance = half * np.sqrt(2) + 0.1
-    if np.linalg.norm(xy - start) < clearance + ROBOT_RADIUS + 0.2:
+    clearance = half * math.sqrt(2) + 0.1
+    if _distance(xy, start) < clearance + ROBOT_RADIUS + 0.2:
         return False
-    if np.linalg.norm(xy - goal) < clearance + GOAL_HALF * np.sqrt(2) + 0.3:
+    if _distance(xy, goal) < clearance + GOAL_HALF * math.sqrt(2) + 0.3:
         return False
-    return all(np.linalg.norm(xy - o) > 2 * half + 0.25 for o in others)
+    return all(_distance(xy, o) > 2 * half + 0.25 for o in others)
+
+
+def _distance(a: np.ndarray, b: np.ndarray) -> float:
+    """The distance between two points, the same to the last bit on every CPU (numpy's ``linalg.norm`` and
+    ``arctan2`` pick SIMD kernels by CPU and round differently on some)."""
+    dx, dy = float(a[0] - b[0]), float(a[1] - b[1])
+    return math.sqrt(dx * dx + dy * dy)

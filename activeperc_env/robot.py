@@ -49,7 +49,9 @@ class WheeledBase:
 
     def heading(self, qpos: np.ndarray) -> np.ndarray:
         """(n,) yaw of the bases of the ``qpos`` rows, radians (not wrapped)."""
-        return 2 * np.arctan2(qpos[:, self.root + 6], qpos[:, self.root + 3])
+        # math.atan2 rounds alike on every CPU, numpy's arctan2 not (its AVX-512 kernel differs)
+        quaternions = qpos[:, [self.root + 3, self.root + 6]]
+        return np.array([2 * math.atan2(z, w) for w, z in quaternions], dtype=np.float64).reshape(len(qpos))
 
 
 class PlanarBase:

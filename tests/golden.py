@@ -21,6 +21,7 @@ import numpy as np
 
 import activeperc_env
 from activeperc_env import EnvConfig, Simulator
+from activeperc_env.names import VERSIONS
 from activeperc_rl import portable
 
 TRACES = Path(__file__).resolve().parent / "golden" / "traces.json"
@@ -156,7 +157,7 @@ def main() -> None:
         }
         path = TRAINING
     else:
-        versions = [int(v) for v in sys.argv[1:]] or list(activeperc_env.names.VERSIONS)
+        versions = [int(v) for v in sys.argv[1:]] or list(VERSIONS)
         stored = json.loads(TRACES.read_text()) if TRACES.exists() else {}
         for version in versions:
             stored[f"v{version}"] = traces(version)
