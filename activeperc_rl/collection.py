@@ -22,6 +22,7 @@ import importlib.util
 import os
 import signal
 import threading
+import time
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ from activeperc_rl.envs import make_env
 
 BACKENDS = ("process", "ray")
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+DEATH_GRACE = 2.0  # seconds an error from the workers waits for a worker's death to show
 
 
 class WorkerError(RuntimeError):
@@ -234,7 +236,8 @@ class Rollouts:
         except WorkerError:
             raise
         except Exception as error:  # TorchRL's own error after a death, or the death's aftermath
-            died = _dead_worker(self.collector)
+            # a pipe breaks as its worker dies, a moment before the process can be seen to have ended
+            died = _dead_worker(self.collector, wait=DEATH_GRACE)
             if died is not None:
                 raise WorkerError(f"{self.name} worker {died}") from None
             if type(error).__name__ in ("RayActorError", "ActorDiedError"):
@@ -242,7 +245,18 @@ class Rollouts:
             raise
 
 
-def _dead_worker(collector) -> str | None:
+def _dead_worker(collector, wait: float = 0.0) -> str | None:
+    """``"k died (how)"`` for the first worker process of ``collector`` that has ended (looking again for up to ``wait``
+    seconds while none has), or ``None``."""
+    deadline = time.monotonic() + wait
+    while True:
+        died = _ended_worker(collector)
+        if died is not None or time.monotonic() >= deadline:
+            return died
+        time.sleep(0.05)
+
+
+def _ended_worker(collector) -> str | None:
     """``"k died (how)"`` for the first worker process of ``collector`` that has ended, or ``None``."""
     for k, process in enumerate(getattr(collector, "procs", None) or []):
         try:

@@ -182,20 +182,24 @@ def start_run(out, *args) -> subprocess.Popen:
     )
 
 
-@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["ctrl-c", "sigterm", "sighup"])
-def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop):
+@pytest.mark.parametrize(
+    ("stop", "rows"),
+    [(signal.SIGINT, 12), (signal.SIGTERM, 3), (signal.SIGHUP, 3)],
+    ids=["ctrl-c", "sigterm", "sighup"],
+)
+def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path, stop, rows):
     """SIGINT (a terminal's Ctrl-C), SIGTERM (a scheduler's stop) or SIGHUP (a closing terminal) to the whole
-    process group, across curriculum's switch of environments."""
+    process group; Ctrl-C after curriculum's switch of environments (which comes after 10 rows)."""
     out = tmp_path / "run"
     process = start_run(out, "--method", "curriculum", "--curriculum-fraction", "0.00003", "--collect-workers", "2")
-    wait_for_rows(out, 12, timeout=240)  # the switch to obstacles comes after 10 rows
+    wait_for_rows(out, rows, timeout=240)
     os.killpg(process.pid, stop)
     output, _ = process.communicate(timeout=120)
     assert process.returncode == 0, output
     if stop != signal.SIGHUP:  # after a SIGHUP the run writes to /dev/null what it wrote to a pipe (a tee's, say)
         assert "checkpoint saved" in output
     assert "Traceback" not in output and "resource_tracker" not in output, output  # no helper process died
-    assert load_checkpoint(out / "checkpoint.pt")["frames"] == int(read_metrics(out)[-1]["frames"]) >= 12 * 32
+    assert load_checkpoint(out / "checkpoint.pt")["frames"] == int(read_metrics(out)[-1]["frames"]) >= rows * 32
     assert not survivors(process.pid), "a worker outlived the run"
     target = str(load_checkpoint(out / "checkpoint.pt")["frames"] + 64)
     assert cli.main(["--out", str(out), "--resume", "--frames", target, "--no-progress", "--eval-episodes", "0"]) == 0
