@@ -46,8 +46,10 @@ def shown_default(cls, f: dataclasses.Field, as_flag: bool = False) -> str:
     would type it: ``16 32``, ``shared``); where it depends on the room's version (``cls.VERSION_DEFAULTS``), each
     version's: ``30.0 (v1), 90.0 (v0)``."""
     by_version = getattr(cls, "VERSION_DEFAULTS", {}).get(f.name)
-    if by_version is not None:
-        return ", ".join(f"{by_version[v]!r} (v{v})" for v in sorted(by_version, reverse=True))
+    if by_version is not None:  # the default room's first, then the others, newest first
+        default = cls.__dataclass_fields__["version"].default
+        order = [default] + [v for v in sorted(by_version, reverse=True) if v != default]
+        return ", ".join(f"{by_version[v]!r} (v{v})" for v in order)
     default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
     if not as_flag:
         return repr(default)
@@ -63,10 +65,11 @@ class EnvConfig:
     """
 
     VERSION_DEFAULTS: ClassVar[dict[str, dict[int, object]]] = {
-        "goal_distance": {0: 3.0, 1: 4.0},
-        "max_cycles": {0: 150, 1: 90},
-        "turn_speed": {0: 90.0, 1: 30.0},
-        "range_rays": {0: 0, 1: 13},
+        "goal_distance": {0: 3.0, 1: 4.0, 2: 4.0},
+        "max_cycles": {0: 150, 1: 90, 2: 90},
+        "turn_speed": {0: 90.0, 1: 30.0, 2: 30.0},
+        "range_rays": {0: 0, 1: 13, 2: 13},
+        "heading_spread": {0: 90.0, 1: 90.0, 2: 180.0},
     }
 
     fov: float = 60.0
@@ -77,6 +80,8 @@ class EnvConfig:
     """Height of the first-person image, in pixels."""
     num_obstacles: int = 3
     """Occluder boxes placed between the start and the goal (0 to 6; 0 gives an empty room)."""
+    heading_spread: float | None = None
+    """The robot starts facing within this many degrees of the goal's bearing (180: any way at all)."""
     goal_distance: float | None = None
     """Distance along the room (x) between the robot's start and the goal, in metres (2.5 to 4.6; the room is 6 m
     long): each is drawn within 0.3 m of -+goal_distance / 2, their y anywhere but 0.5 m from the side walls."""
@@ -101,8 +106,9 @@ class EnvConfig:
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
     version: int = 1
-    """The room's version: 1, or 0 for the paper-faithful room of the Figure 1 pilot (docs/env.md, Version History).
-    It picks the robot, its physics and the defaults shown per version."""
+    """The room's version: 1; 2, v1 without hints of where the goal lies; or 0, the paper-faithful room of the Figure 1
+    pilot (docs/env.md, Version History). It picks the robot, its physics, how layouts are drawn and the defaults
+    shown per version."""
 
     def __post_init__(self) -> None:
         if not (is_int(self.version) and self.version in VERSIONS):  # first: the other defaults depend on it
@@ -117,6 +123,7 @@ class EnvConfig:
             "width": is_int(self.width) and 8 <= self.width <= 1024,
             "height": is_int(self.height) and 8 <= self.height <= 1024,
             "num_obstacles": is_int(self.num_obstacles) and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
+            "heading_spread": is_number(self.heading_spread) and 0.0 <= self.heading_spread <= 180.0,
             "goal_distance": is_number(self.goal_distance) and 2.5 <= self.goal_distance <= 4.6,
             "max_cycles": is_int(self.max_cycles) and self.max_cycles >= 1,
             "pan_range": is_number(self.pan_range) and 0.0 <= self.pan_range <= 180.0,
@@ -135,6 +142,7 @@ class EnvConfig:
             "width": "an int in [8, 1024]",
             "height": "an int in [8, 1024]",
             "num_obstacles": f"an int in [0, {len(OCCLUDER_BODIES)}]",
+            "heading_spread": "degrees in [0, 180]",
             "goal_distance": "metres in [2.5, 4.6]",
             "max_cycles": "an int >= 1",
             "pan_range": "degrees in [0, 180]",

@@ -198,7 +198,13 @@ class Simulator:
         self._batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         n_obs = self.config.num_obstacles
         for i in ids:
-            layout = sample_layout(self._rngs[i], n_obs, self.config.goal_distance)
+            layout = sample_layout(
+                self._rngs[i],
+                n_obs,
+                self.config.goal_distance,
+                math.radians(self.config.heading_spread),
+                shuffle=self.config.version >= 2,  # v2's occluders trade places: no colour marks the way
+            )
             qpos = self._qpos[i]
             self._base.place(qpos, layout.start_xy, layout.heading)
             mocap = self._mocap_pos[i]
@@ -301,6 +307,23 @@ class Simulator:
         self._qpos[ids, self._ids.pan] = pan
         self._qvel[ids, self._ids.pan_dof] = 0.0
         self._ctrl[ids, self._ids.pan_ctrl] = pan
+
+    def look_views(self, ids=None) -> tuple[np.ndarray, np.ndarray]:
+        """What each look would show the rooms ``ids`` (all when ``None``), the camera left where it is: the views
+        (n, 3, height, width, 3) uint8 and pans (n, 3, 1) float32 after 'pan left', 'hold' and 'pan right'. A look
+        that would not turn the camera (a hold, a pan against the limit) shows the current view."""
+        ids = self._as_ids(ids)
+        current = self.render(ids)
+        before = self._qpos[ids, self._ids.pan]
+        pans = np.clip(before[:, None] + self._pan_deltas, -self._pan_limit, self._pan_limit).astype(np.float32)
+        views = np.repeat(current[:, None], len(LOOKER_ACTIONS), axis=1)
+        turned = pans != before[:, None]
+        if turned.any():
+            rooms = np.nonzero(turned)[0]
+            qpos = self._qpos[ids[rooms]].copy()
+            qpos[:, self._ids.pan] = pans[turned]
+            views[turned] = self.renderer.render(qpos, self._mocap_pos[ids[rooms]])
+        return views, pans[..., None]
 
     # ----------------------------------------------------------------- observations
     def render(self, ids=None, out: np.ndarray | None = None) -> np.ndarray:

@@ -85,6 +85,7 @@ class JointEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
+        v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
         v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
         observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
         v0: first release, the paper-faithful room (``version=0``).
@@ -125,6 +126,7 @@ class FixedForwardEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
+        v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
         v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
         observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
         v0: first release, the paper-faithful room (``version=0``).

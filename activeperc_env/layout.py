@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -19,7 +20,6 @@ X_JITTER = 0.3  # start and goal x are drawn within this of -+goal_distance / 2
 SIDE_Y = ROOM_HALF_Y - 0.5
 LINE_OFFSET = 0.45  # the first occluder's centre is within this of the start-goal line
 SIDE_OFFSET = (1.0, 1.6)  # the others' centres are this far to either side of it
-HEADING_SPREAD = np.pi / 2  # the start heading is within +-90 degrees of the goal's bearing
 # whole-layout draws before giving up: the hardest config (6 occluders, goal_distance 2.5) fits 13 of 700 draws
 # (tests/test_scene.py): all of 1,000 draws then fail about once in 10**8 resets, which long runs with many rooms
 # approach; all of 10,000 practically never, at no cost where a draw fits
@@ -41,8 +41,17 @@ class Layout:
     """(num_obstacles, 2) centres of the occluder boxes."""
 
 
-def sample_layout(rng: np.random.Generator, num_obstacles: int, goal_distance: float) -> Layout:
+def sample_layout(
+    rng: np.random.Generator,
+    num_obstacles: int,
+    goal_distance: float,
+    heading_spread: float = math.pi / 2,
+    shuffle: bool = False,
+) -> Layout:
     """Draw a layout: start on the west side, goal on the east side, occluders on the way.
+
+    The start heading lies within ``heading_spread`` radians of the goal's bearing. With ``shuffle`` the occluders
+    trade places at random once placed (room v2), so that no box's colour tells where the goal lies.
 
     The start's x is drawn within ``X_JITTER`` of ``-goal_distance / 2`` and the goal's within
     ``X_JITTER`` of ``+goal_distance / 2``; both y anywhere but 0.5 m from the side walls.
@@ -54,20 +63,22 @@ def sample_layout(rng: np.random.Generator, num_obstacles: int, goal_distance: f
     stream, so a seed fixes the layout.
     """
     for _ in range(MAX_TRIES):
-        layout = _draw(rng, num_obstacles, goal_distance)
+        layout = _draw(rng, num_obstacles, goal_distance, heading_spread)
         if layout is not None:
+            if shuffle:
+                return dataclasses.replace(layout, occluders_xy=layout.occluders_xy[rng.permutation(num_obstacles)])
             return layout
     raise RuntimeError(f"no layout with {num_obstacles} occluders fitted in {MAX_TRIES} draws")
 
 
-def _draw(rng: np.random.Generator, num_obstacles: int, goal_distance: float) -> Layout | None:
+def _draw(rng: np.random.Generator, num_obstacles: int, goal_distance: float, heading_spread: float) -> Layout | None:
     """One attempt at a layout; ``None`` when an occluder finds no free spot."""
     half = goal_distance / 2
     start = np.array([rng.uniform(-half - X_JITTER, -half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
     goal = np.array([rng.uniform(half - X_JITTER, half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y)])
     line = goal - start
     bearing = math.atan2(line[1], line[0])  # the math module's, not numpy's: see _distance
-    heading = bearing + rng.uniform(-HEADING_SPREAD, HEADING_SPREAD)
+    heading = bearing + rng.uniform(-heading_spread, heading_spread)
     normal = np.array([-line[1], line[0]]) / _distance(goal, start)
     occluders: list[np.ndarray] = []
     for i in range(num_obstacles):

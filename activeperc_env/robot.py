@@ -85,7 +85,7 @@ class PlanarBase:
         return qpos[:, self.yaw]
 
 
-BASES = {0: WheeledBase, 1: PlanarBase}
+BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase}
 
 
 def make_base(model: mujoco.MjModel, config: EnvConfig) -> WheeledBase | PlanarBase:

@@ -86,6 +86,30 @@ def test_looker_never_moves_the_base_and_mover_never_turns_the_camera():
             sim.reset(np.flatnonzero(sim.done))
 
 
+def test_look_views_show_what_each_look_would_show_and_turn_nothing():
+    sim = Simulator(EnvConfig(), num_envs=3, nthread=1)
+    sim.reset(seeds=[1, 2, 3])
+    sim.move(np.array([2, 0, 2]))
+    sim.look(np.array([0, 1, 1]))
+    sim.look(np.array([0, 1, 1]))
+    sim.look(np.array([0, 1, 1]))
+    sim.look(np.array([0, 1, 1]))  # room 0's camera at its left limit
+    state = sim.get_state()
+    views, pans = sim.look_views()
+    assert views.shape == (3, 3, 60, 80, 3) and pans.shape == (3, 3, 1)
+    assert np.array_equal(sim.get_state()["physics"], state["physics"])
+    assert np.array_equal(views[:, 1], sim.render()) and np.array_equal(pans[:, 1], sim.pan())
+    assert np.array_equal(views[0, 0], views[0, 1])  # a pan against the limit shows the view of a hold
+    for look in (0, 2):
+        other = Simulator(EnvConfig(), num_envs=3, nthread=1)
+        other.set_state(state)
+        other.look(np.full(3, look))
+        assert np.array_equal(other.pan(), pans[:, look])
+        assert_same_view(other.render(), views[:, look])
+        other.close()
+    sim.close()
+
+
 def test_pan_moves_by_step_and_stays_in_range():
     config = EnvConfig(pan_step=30, pan_range=60)
     sim = Simulator(config)

@@ -17,6 +17,7 @@ BASE_ELEMENTS = {
     0: [(JOINT, names.ROOT_JOINT), (ACTUATOR, names.LEFT_WHEEL), (ACTUATOR, names.RIGHT_WHEEL)],
     1: [(JOINT, j) for j in names.BASE_JOINTS] + [(ACTUATOR, a) for a in names.BASE_DRIVES],
 }
+BASE_ELEMENTS[2] = BASE_ELEMENTS[1]  # v2's robot is v1's
 
 
 @pytest.mark.parametrize("version", names.VERSIONS)
@@ -174,7 +175,7 @@ def test_the_hardest_config_never_runs_out_of_draws():
     700), and the chance that all MAX_TRIES draws of a reset fail must be negligible (about 1e-8 at 1,000)."""
     rng = np.random.default_rng(0)
     draws = 700
-    fitted = sum(layouts._draw(rng, len(names.OCCLUDER_BODIES), 2.5) is not None for _ in range(draws))
+    fitted = sum(layouts._draw(rng, len(names.OCCLUDER_BODIES), 2.5, math.pi) is not None for _ in range(draws))
     assert fitted > 0
     assert (1 - fitted / draws) ** layouts.MAX_TRIES < 1e-12
 
