@@ -30,6 +30,8 @@ DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
 COLLECTORS = ("process", "ray")
+LOOKER_CREDITS = ("trajectory", "look", "every_look")
+OPTIMIZERS = ("adam", "sgd")
 # The options that only some methods read; every other option is read by every method.
 METHOD_OPTIONS = {
     "epsilon": ("meta",),
@@ -39,6 +41,8 @@ METHOD_OPTIONS = {
     "e1_looks": ("meta",),
     "mover_rollouts": ("meta",),
     "looker_importance_weights": ("meta",),
+    "looker_credit": ("meta",),
+    "looker_optimizer": ("meta",),
     "looker_lr": ("meta", "ia2c"),
     "looker_entropy_coeff": ("meta", "ia2c"),
     "looker_hold_prob": ("meta", "ia2c", "joint", "curriculum"),
@@ -143,12 +147,25 @@ class TrainConfig:
     paper does not (False): its gradient then has the bias mean(M) * (b - pi_phi2) on phi2's logits, so while E2
     scores below E1 on average, every look E2 explores more often than phi2 would take it is pushed down
     (activeperc_rl/losses.py)."""
+    looker_credit: str = "trajectory"
+    """'meta': what each look of D2 is credited with in phi2's REINFORCE step. 'trajectory' (the paper): its
+    trajectory's meta-evaluator M(tau_k) against E1's baseline. 'look': the value difference the look made,
+    V_w2(s') - V_w2(s_bar), the mover's critic on the view after the look and on the view before it, in the same
+    state of the room (0 for 'hold'). 'every_look': E2 also renders what the other looks would have shown, the
+    critic values all three, and phi2 follows the expected gradient over them (activeperc_rl/losses.py)."""
+    looker_optimizer: str = "adam"
+    """'meta': phi2's optimizer, 'adam' or 'sgd'. Adam takes steps of looker_lr whatever the size of the gradient,
+    so a meta-evaluator that is still noise moves phi2 as far as one that knows; SGD's steps grow with it."""
     curriculum_fraction: float = 0.3
     """'curriculum': fraction of the frames spent pre-training the joint agent in a room without obstacles."""
     channels: tuple[int, ...] = (16, 32)
     """Output channels of the encoder's conv layers (kernels 8, 4, 3, ... with strides 4, 2, 1, ...)."""
     hidden_size: int = 256
     """Width of the encoder's output and of the heads' input."""
+    bearing_bins: int = 0
+    """Bins of the mover's bearing layout (0: none): its networks (and the joint agent's) lay the view's features
+    out by bearing from the robot's heading, pan included, so a goal seen to the left lands in the same features
+    wherever the camera looks (activeperc_rl/models.py). The lookers' networks see the view as it is."""
     success_window: int = 100
     """Finished episodes the logged success rate and mean return are averaged over (progress bar, metrics.csv,
     TensorBoard)."""
@@ -156,7 +173,8 @@ class TrainConfig:
     """Seconds between checkpoints (one is also written as the run starts, at the end and on Ctrl-C, SIGTERM or
     SIGHUP)."""
     eval_episodes: int = 100
-    """Held-out episodes evaluated at the end of training (for the learned and a random policy); 0 skips it."""
+    """Held-out episodes evaluated at the end of training (for the learned policy, its mover with the camera held
+    forward where a looker turns it, and a random policy); 0 skips it."""
     env: EnvConfig = field(default_factory=EnvConfig)
     """The environment (the same for E1 and E2 and for evaluation)."""
 
@@ -208,6 +226,8 @@ class TrainConfig:
                 "a probability in (0, 1)",
             ),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
+            "looker_credit": (self.looker_credit in LOOKER_CREDITS, f"one of {LOOKER_CREDITS}"),
+            "looker_optimizer": (self.looker_optimizer in OPTIMIZERS, f"one of {OPTIMIZERS}"),
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "curriculum_fraction": (
                 is_number(self.curriculum_fraction) and 0.0 < self.curriculum_fraction < 1.0,
@@ -220,6 +240,7 @@ class TrainConfig:
                 "one or more ints in 1 .. 4096",
             ),
             "hidden_size": (_int_in(self.hidden_size, 1, 2**16), "an int in 1 .. 65536"),
+            "bearing_bins": (_int_in(self.bearing_bins, 0, 360), "an int in 0 .. 360"),
             "success_window": (_int_in(self.success_window, 1, 2**31), "an int in 1 .. 2**31"),
             "checkpoint_every": (is_number(self.checkpoint_every) and self.checkpoint_every > 0, "seconds > 0"),
             "eval_episodes": (is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),

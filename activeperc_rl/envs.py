@@ -114,6 +114,7 @@ def make_env(
     split: str = "train",
     first_room: int = 0,
     nthread: int = 0,
+    look_views: bool = False,
     **env_config,
 ):
     """Build the batched TorchRL env over one ``Simulator(num_envs)``.
@@ -128,6 +129,7 @@ def make_env(
         first_room: index of this env's first room in a larger env whose rooms are split over several
             envs (worker processes): room ``i`` here gets the layouts of room ``first_room + i`` there.
         nthread: physics threads (0: every core this process may use).
+        look_views: in looker mode, record what each look would have shown (see :class:`ActivePerceptionEnv`).
         **env_config: any :class:`~activeperc_env.EnvConfig` field.
     """
     env = ActivePerceptionEnv(
@@ -138,6 +140,7 @@ def make_env(
         nthread=nthread,
         split=split,
         first_room=first_room,
+        look_views=look_views,
     )
     if seed is not None:
         env.set_seed(seed)
@@ -155,6 +158,9 @@ class ActivePerceptionEnv(EnvBase):
         nthread: physics threads of the simulator (0: every core).
         split: ``"train"`` or ``"eval"``: the parity of the episode seeds (see the module doc).
         first_room: index of the first room in the seeding of a larger env split over several (see :func:`make_env`).
+        look_views: in looker mode, also record under ``("looker", "look_views")`` the ``"image"`` (3, H, W, 3) and
+            ``"pan"`` (3, 1) that 'pan left', 'hold' and 'pan right' would have given the mover in each cycle
+            (:meth:`~activeperc_env.Simulator.look_views`): the views meta's credit for every look values.
     """
 
     def __init__(
@@ -166,6 +172,7 @@ class ActivePerceptionEnv(EnvBase):
         nthread: int = 0,
         split: str = "train",
         first_room: int = 0,
+        look_views: bool = False,
     ):
         if split not in SPLITS:
             raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
@@ -177,6 +184,7 @@ class ActivePerceptionEnv(EnvBase):
         super().__init__(device=torch_device(device), batch_size=[num_envs])
         self.first_room = first_room
         self.split = split
+        self.look_views = bool(look_views)
         self.config = config
         self.num_envs = num_envs
         self.sim = Simulator(config, num_envs=num_envs, nthread=nthread)
@@ -272,6 +280,15 @@ class ActivePerceptionEnv(EnvBase):
                 f"it wrote {sorted(map(str, new))}"
             )
         spec = Composite(observation=self._obs_spec.clone(), shape=n, device=self.device)
+        if self.look_views:
+            image, pan = self._obs_spec["image"], self._obs_spec["pan"]
+            looks = len(LOOKER_ACTIONS)
+            spec["look_views"] = Composite(
+                image=Bounded(0, 255, (*n, looks, *image.shape[1:]), dtype=torch.uint8, device=self.device),
+                pan=Bounded(pan.space.low.min(), pan.space.high.max(), (*n, looks, 1), device=self.device),
+                shape=n,
+                device=self.device,
+            )
         for key in sorted(new, key=str):
             value = out.get(key)
             if key == (LOOKER, "action"):
@@ -338,6 +355,9 @@ class ActivePerceptionEnv(EnvBase):
             with torch.no_grad():
                 written = self._looker(record)
             record = (record if written is None else written).get(LOOKER)
+            if self.look_views:
+                views, pans = self.sim.look_views()
+                record.set("look_views", {"image": torch.from_numpy(views), "pan": torch.from_numpy(pans)})
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
         out.set((MOVER, "observation"), self._observe())

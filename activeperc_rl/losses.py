@@ -33,6 +33,32 @@ does not weight)::
 
     loss_looker = - sum_k sum_{t in tau_k} rho_t log pi_phi2(u^c_t | s_bar_t) * M(tau_k)
 
+Credit per look
+---------------
+With ``credit="look"`` each look is credited with the value difference it made instead of its trajectory's
+``M``. The looker acts where no time passes: ``s_bar_t`` (the view after the move) is what the mover would
+have seen had the camera held, ``s'_t`` what it sees after the look, in the same state of the room. So the
+mover's critic values both, and::
+
+    M_t = V_w2(s'_t) - V_w2(s_bar_t)
+
+is 0 for 'hold' and, for a pan, the value the mover expects to gain from the new view: the advantage of the
+look over holding, one per look rather than one scalar per trajectory. Looks made after the move that ended an
+episode change nothing and get no term. The loss is the REINFORCE loss above with ``M_t`` in place of
+``M(tau_k)`` (importance-weighted the same way with ``behaviour_epsilon``); ``D1`` then only supplies the
+reported ``baseline``.
+
+With ``credit="every_look"`` the critic values the view of every look ``u`` in each cycle, ``Q_t(u) =
+V_w2(s'_t(u))`` (the views recorded under ``("looker", "look_views")``, :func:`~activeperc_rl.envs.make_env`'s
+``look_views``), and ``pi_phi2`` follows the expected gradient of ``sum_u pi_phi2(u | s_bar_t) Q_t(u)`` instead of
+one sampled look's::
+
+    loss_looker = - sum_t sum_u pi_phi2(u | s_bar_t) (Q_t(u) - sum_u' pi_phi2(u' | s_bar_t) Q_t(u'))
+
+(the baseline inside the bracket is held constant). No look is drawn for the update, so no importance weight
+is needed; ``M_t`` is reported as ``sum_u pi_phi2(u) Q_t(u) - Q_t('hold')``, what the looker's policy adds over
+holding by the critic's account.
+
 Trajectories
 ------------
 The rollouts are tensordicts of batch shape ``[B, T]`` (``B`` rooms, time last; any leading batch
@@ -65,6 +91,8 @@ from torchrl.objectives.common import LossModule
 __all__ = ["MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
 
 _REDUCTIONS = ("mean", "sum")
+CREDITS = ("trajectory", "look", "every_look")
+HOLD_LOOK = 1  # the index of 'hold' among the looks
 
 
 def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
@@ -176,6 +204,9 @@ class MetaEvaluationLoss(LossModule):
             ``pi_phi2``'s parameters must be those that drew ``D2``.
         reduction: ``"mean"`` divides the sums over steps by the number of valid steps of ``D2``,
             ``"sum"`` does not.
+        credit: ``"trajectory"`` (the paper): each look gets its trajectory's ``M(tau_k)``; ``"look"``: each look
+            gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"every_look"``: every look of each cycle is valued (see the
+            module docstring).
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
@@ -227,9 +258,12 @@ class MetaEvaluationLoss(LossModule):
         entropy_coeff: float = 0.01,
         behaviour_epsilon: float | None = None,
         reduction: str = "mean",
+        credit: str = "trajectory",
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
+        if credit not in CREDITS:
+            raise ValueError(f"credit must be one of {CREDITS}, got {credit!r}.")
         if behaviour_epsilon is not None and not (
             isinstance(behaviour_epsilon, numbers.Real)
             and not isinstance(behaviour_epsilon, bool)
@@ -249,6 +283,7 @@ class MetaEvaluationLoss(LossModule):
         self.critic = critic
         self.reference_critic = reference_critic
         self.reduction = reduction
+        self.credit = credit
         self.behaviour_epsilon = None if behaviour_epsilon is None else float(behaviour_epsilon)
         self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
         self._entropy_bonus = float(entropy_coeff) != 0.0
@@ -362,12 +397,23 @@ class MetaEvaluationLoss(LossModule):
         reference, ref_mask, ref_ids, num_ref = self._steps(reference, "reference (D1)")
         baseline = self._trajectory_values(self.reference_critic, reference, ref_mask, ref_ids, num_ref).mean()
 
-        # Meta-evaluator of each trajectory of D2.
         tensordict, mask, ids, num = self._steps(tensordict, "tensordict (D2)")
-        meta = (self._trajectory_values(self.critic, tensordict, mask, ids, num) - baseline).detach()
-
-        # REINFORCE on the valid steps of D2, each weighted by its trajectory's M.
         record = tensordict if record_key in ((), "") else tensordict.get(record_key)
+        if self.credit == "trajectory":  # the meta-evaluator of each trajectory of D2, for each of its steps
+            meta = (self._trajectory_values(self.critic, tensordict, mask, ids, num) - baseline).detach()
+            step_credit = meta[ids[mask]]
+        else:  # a look after the episode's last move counts for nothing
+            done = _flags(tensordict.get(keys.done), tensordict.batch_size, "tensordict (D2)", keys.done)
+            mask = mask & ~done
+            if not mask.any():
+                raise ValueError(
+                    "tensordict (D2) has no look that a move followed: every valid step ended its episode."
+                )
+            if self.credit == "every_look":
+                return self._every_look(record, mask, baseline, num, num_ref)
+            step_credit = meta = self._look_values(record, mask)  # each look's own value difference
+
+        # REINFORCE on the valid steps of D2, each weighted by its credit.
         steps = record.select(*self.looker_actor.in_keys, keys.looker_action, strict=False)[mask]
         action = steps.get(keys.looker_action)
         dist = self.looker_actor.get_dist(steps.exclude(keys.looker_action))
@@ -384,7 +430,7 @@ class MetaEvaluationLoss(LossModule):
             raise ValueError(f"the looks at {action_key!r} must lie in 0 .. {looks - 1}, got {found}.")
         log_prob = dist.log_prob(action).reshape(-1)
         rho = self._importance_weights(dist.logits, action).reshape(-1)
-        weights = meta[ids[mask]] * rho
+        weights = step_credit * rho
         loss_looker = -(log_prob * weights).sum()
         entropy = dist.entropy().reshape(-1)
         loss_entropy = -self.entropy_coeff * entropy.sum()
@@ -404,6 +450,67 @@ class MetaEvaluationLoss(LossModule):
         out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
         out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
         return out
+
+    def _every_look(
+        self, record: TensorDictBase, mask: torch.Tensor, baseline: torch.Tensor, num: int, num_ref: int
+    ) -> TensorDictBase:
+        """The loss with ``credit="every_look"`` on the valid steps ``mask`` of D2's looker ``record``."""
+        steps = record[mask]
+        group = self._looker_group()
+        views = steps.get((group, "look_views"), None)
+        if views is None:
+            raise ValueError(
+                f"credit='every_look' needs the views of every look at {(group, 'look_views')!r}: collect D2 with "
+                "make_env(..., look_views=True)"
+            )
+        values = []
+        for look in range(views.get("pan").shape[-2]):
+            td = steps.select(*self.critic.in_keys, strict=False).clone(False)
+            for key in self.critic.in_keys:  # ("mover", "observation", k): the look's view, the looker's range
+                name = key[-1]
+                source = views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:]))
+                td.set(key, source)
+            with torch.no_grad():
+                values.append(self.critic(td).get(self.tensor_keys.value).reshape(-1))
+        q = torch.stack(values, -1).detach()  # (steps, looks)
+        dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
+        probs = dist.probs.reshape(q.shape)
+        expected = (probs * q).sum(-1)
+        gain = (probs * (q - expected.detach()[:, None])).sum(-1)  # its gradient is the policy gradient
+        entropy = dist.entropy().reshape(-1)
+        loss_looker, loss_entropy = -gain.sum(), -self.entropy_coeff * entropy.sum()
+        if self.reduction == "mean":
+            loss_looker, loss_entropy = loss_looker / len(q), loss_entropy / len(q)
+        meta = (expected - q[:, HOLD_LOOK]).detach()
+        out = TensorDict({"loss_looker": loss_looker}, batch_size=[])
+        if self._entropy_bonus:
+            out.set("loss_entropy", loss_entropy)
+        dtype = meta.dtype
+        out.set("entropy", entropy.detach().mean())
+        out.set("importance_weight", torch.ones((), dtype=dtype, device=meta.device))
+        out.set("meta_value", meta.mean())
+        out.set("meta_value_std", meta.std(correction=0))
+        out.set("baseline", baseline.detach())
+        out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
+        out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
+        return out
+
+    def _look_values(self, record: TensorDictBase, mask: torch.Tensor) -> torch.Tensor:
+        """``V(s'_t) - V(s_bar_t)`` of each valid step, by :attr:`critic`, without gradient: ``s'_t`` is the mover's
+        observation of the looker's record (the view after the look), ``s_bar_t`` the looker's own (before it)."""
+        steps = record[mask]
+        after = steps.select(*self.critic.in_keys, strict=False)
+        before = after.clone(False)
+        for key in self.critic.in_keys:  # ("mover", "observation", k) -> the looker's ("looker", "observation", k)
+            before.set(key, steps.get((self._looker_group(), *key[1:])))
+        with torch.no_grad():
+            values = [self.critic(td).get(self.tensor_keys.value).reshape(-1) for td in (after, before)]
+        return (values[0] - values[1]).detach()
+
+    def _looker_group(self) -> str:
+        """The group under which the looker's record holds ``s_bar`` (the first entry of its action key)."""
+        action = self.tensor_keys.looker_action
+        return action[0] if isinstance(action, tuple) else action
 
     def _importance_weights(self, logits: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         """``pi_phi2(u) / b(u)`` of each look, detached; ones without ``behaviour_epsilon``."""

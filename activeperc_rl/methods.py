@@ -83,9 +83,11 @@ class Method:
         self.optimizers: dict[str, torch.optim.Optimizer] = {}
 
     # ---------------------------------------------------------------- construction helpers
-    def _encoder(self):
-        # built on the CPU (the same initial weights on every device); the networks around it move to the device
-        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size)
+    def _encoder(self, bearing: bool = True):
+        """A fresh encoder (``bearing``: with the mover's bearing layout), built on the CPU (the same initial weights
+        on every device); the networks around it move to the device."""
+        bins = self.config.bearing_bins if bearing else 0
+        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size, bins)
 
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
@@ -115,7 +117,7 @@ class Method:
         The networks are registered as ``{name}_actor`` and ``{name}_critic``; the actor's action lies
         under ``action_agent`` (default: ``agent``).
         """
-        encoder = self._encoder()
+        encoder = self._encoder(bearing=agent == MOVER)
         actor = make_actor(encoder, self.config.hidden_size, action_agent or agent, num_actions, reads=agent)
         critic = make_critic(encoder, self.config.hidden_size, agent)
         actor.to(self.device)
@@ -154,9 +156,12 @@ class Method:
         """The next rollout of ``collector``, shape ``[num_envs, rollout_length]``."""
         return next(collector)
 
-    def _optimizer(self, name: str, modules: list[nn.Module], lr: float) -> None:
+    def _optimizer(self, name: str, modules: list[nn.Module], lr: float, kind: str = "adam") -> None:
         params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
-        self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5)
+        if kind == "sgd":
+            self.optimizers[name] = torch.optim.SGD(params, lr=lr)
+        else:
+            self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5)
 
     def _step(self, name: str, loss: nn.Module, *inputs: TensorDictBase) -> dict[str, float]:
         """One step of optimizer ``name`` on the sum of the ``loss_*`` entries of ``loss(*inputs)``.
@@ -408,7 +413,7 @@ class Meta(_MoverA2C):
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
-        self.phi2 = make_actor(self._encoder(), config.hidden_size, LOOKER).to(self.device)
+        self.phi2 = make_actor(self._encoder(bearing=False), config.hidden_size, LOOKER).to(self.device)
         start_holding(self.phi2, config.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)
@@ -422,9 +427,10 @@ class Meta(_MoverA2C):
             self.critic,
             entropy_coeff=config.looker_entropy_coeff,
             behaviour_epsilon=config.epsilon if config.looker_importance_weights else None,
+            credit=config.looker_credit,
         )
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
-        self._optimizer("looker", [self.phi2], config.looker_lr)
+        self._optimizer("looker", [self.phi2], config.looker_lr, config.looker_optimizer)
 
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
@@ -435,6 +441,7 @@ class Meta(_MoverA2C):
             looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon),
             seed_offset=e2_seed_offset,
             name="E2's collector",
+            look_views=self.config.looker_credit == "every_look",
         )
 
     def iterate(self) -> Iteration:

@@ -27,6 +27,12 @@ class Encoder(nn.Module):
     """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan and the range readings scaled to
     [0, 1] (where the room has a range sensor), then a linear layer.
 
+    With ``bearing_bins`` the conv features are first laid out by bearing from the robot's heading instead of by
+    column of the view: ``bearing_bins`` bins span every bearing the camera can see, and each bin takes the
+    features of the view's column that looks that way (the pan plus the column's angle from the camera's axis),
+    zero where the camera does not look. A goal seen 40 degrees to the left then lands in the same features
+    whether the camera looks ahead or 30 degrees left (:class:`BearingLayout`).
+
     It reads the images as the env gives them, of shape ``(*batch, height, width, 3)`` with values 0 to 255
     (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the ``(3, H, W)`` images
     of TorchRL's ``ToTensorImage``, which are scaled to [0, 1] too) raises ``ValueError``.
@@ -37,6 +43,9 @@ class Encoder(nn.Module):
         hidden_size: width of the output features.
         range_rays: readings of the range sensor it also reads (0: none).
         range_max: the range sensor's longest reading, which it scales the readings by.
+        bearing_bins: bins of the bearing layout (0: the features as the conv stack gives them).
+        fov: the camera's horizontal field of view, degrees (read with ``bearing_bins``).
+        pan_range: the camera's pan limit, degrees (read with ``bearing_bins``).
     """
 
     KERNELS = ((8, 4), (4, 2), (3, 1))
@@ -49,6 +58,9 @@ class Encoder(nn.Module):
         hidden_size: int,
         range_rays: int = 0,
         range_max: float = 1.0,
+        bearing_bins: int = 0,
+        fov: float = 60.0,
+        pan_range: float = 120.0,
     ):
         super().__init__()
         self.image_shape = (height, width, 3)
@@ -60,8 +72,10 @@ class Encoder(nn.Module):
                 raise ValueError(f"channels={tuple(channels)} has too many conv layers for a {width}x{height} image")
             layers += [nn.Conv2d(in_ch, out_ch, kernel, stride), nn.ReLU()]
             in_ch, h, w = out_ch, (h - kernel) // stride + 1, (w - kernel) // stride + 1
-        self.conv = nn.Sequential(*layers, nn.Flatten())
-        self.linear = nn.Sequential(nn.Linear(in_ch * h * w + 2 + range_rays, hidden_size), nn.ReLU())
+        self.conv = nn.Sequential(*layers)
+        self.layout = BearingLayout(bearing_bins, h, fov, pan_range) if bearing_bins else None
+        columns = bearing_bins or w
+        self.linear = nn.Sequential(nn.Linear(in_ch * h * columns + 2 + range_rays, hidden_size), nn.ReLU())
 
     def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
         """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)``, ``pan (*batch, 1)`` and, with
@@ -76,10 +90,46 @@ class Encoder(nn.Module):
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)
         pan = pan.reshape(-1, 1).to(x.dtype)
-        parts = [x, torch.sin(pan), torch.cos(pan)]
+        if self.layout is not None:
+            x = self.layout(x, pan)
+        parts = [x.flatten(1), torch.sin(pan), torch.cos(pan)]
         if self.range_rays:
             parts.append(ranges.reshape(-1, self.range_rays).to(x.dtype) / self.range_max)
         return self.linear(torch.cat(parts, dim=-1)).reshape(*batch, -1)
+
+
+class BearingLayout(nn.Module):
+    """Lays the columns of a view's feature map out by bearing from the robot's heading.
+
+    ``bins`` bins of equal width span the bearings ``-reach .. +reach`` (``reach``: the pan limit plus half the field
+    of view, at most 180 degrees). Bin ``j`` at bearing ``b`` takes, by linear interpolation, the features of the
+    view's column at angle ``b - pan`` from the camera's axis (a pinhole's ``tan``), and zeros where that angle lies
+    outside the field of view. Positive bearings are to the left, as the pan's.
+
+    Args:
+        bins: the bins.
+        rows: the feature map's rows (each row is laid out alike).
+        fov: horizontal field of view, degrees.
+        pan_range: the pan limit, degrees.
+    """
+
+    def __init__(self, bins: int, rows: int, fov: float, pan_range: float):
+        super().__init__()
+        reach = min(math.radians(pan_range + fov / 2), math.pi)
+        edges = torch.linspace(-reach, reach, bins + 1)
+        self.register_buffer("bearings", (edges[:-1] + edges[1:]) / 2, persistent=False)
+        self.register_buffer("rows", (2 * torch.arange(rows) + 1) / rows - 1, persistent=False)  # cell centres
+        self.half_fov = math.radians(fov) / 2
+
+    def forward(self, features: torch.Tensor, pan: torch.Tensor) -> torch.Tensor:
+        """``(n, C, rows, bins)`` from the feature maps ``(n, C, rows, columns)`` and the pans ``(n, 1)``, radians."""
+        angle = self.bearings[None, :] - pan  # (n, bins): from the camera's axis, positive to the left
+        inside = angle.abs() < self.half_fov
+        x = -torch.tan(angle.clamp(-self.half_fov, self.half_fov)) / math.tan(self.half_fov)  # -1: the left edge
+        n, rows, bins = features.shape[0], self.rows.numel(), self.bearings.numel()
+        grid = torch.stack([x[:, None, :].expand(n, rows, bins), self.rows[None, :, None].expand(n, rows, bins)], -1)
+        laid = nn.functional.grid_sample(features, grid.to(features.dtype), align_corners=False)
+        return laid * inside[:, None, None, :].to(laid.dtype)
 
 
 class Head(nn.Module):
@@ -95,9 +145,19 @@ class Head(nn.Module):
         return self.out(self.encoder(image, pan, ranges))
 
 
-def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int) -> Encoder:
-    """An :class:`Encoder` sized for ``env``'s observation."""
-    return Encoder(env.height, env.width, channels, hidden_size, env.range_rays, env.range_max)
+def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int, bearing_bins: int = 0) -> Encoder:
+    """An :class:`Encoder` sized for ``env``'s observation (``bearing_bins``: see :class:`Encoder`)."""
+    return Encoder(
+        env.height,
+        env.width,
+        channels,
+        hidden_size,
+        env.range_rays,
+        env.range_max,
+        bearing_bins,
+        env.fov,
+        env.pan_range,
+    )
 
 
 def observation_keys(agent: str, encoder: Encoder) -> list[tuple[str, ...]]:

@@ -47,8 +47,12 @@ from activeperc_rl.collection import WorkerError
 from activeperc_rl.config import TrainConfig, resolve_device, save_yaml
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import Iteration, make_method, success_rate
+from activeperc_rl.models import FixedLooker
 from activeperc_rl.rundir import check_fresh, claim_run_dir
 from activeperc_rl.signals import on_stop_signals
+
+# how the final evaluation names each policy it plays (the keys of eval.json)
+EVAL_NAMES = {"learned": "learned", "camera_held": "learned, camera held forward", "random": "random"}
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
@@ -244,15 +248,17 @@ class _Run:
         } | {column: round(step.losses[key], 5) for key, column in self.method.LOGGED.items()}
 
     def evaluate(self, progress: bool) -> dict:
-        """The learned and a random policy on held-out layouts, printed and written to ``eval.json``."""
+        """The learned and a random policy on held-out layouts, printed and written to ``eval.json``; where a looker
+        module turns the camera, also the learned mover with the camera held forward (``"camera_held"``): what the
+        learned looker adds."""
         mover_policy, looker = self.method.policy()
         held_out = dict(
             episodes=self.config.eval_episodes, seed=self.config.seed, device=self.device, progress=progress
         )
-        result = {
-            "learned": evaluate(self.config, mover_policy, looker, **held_out),
-            "random": evaluate(self.config, None, None, **held_out),
-        }
+        result = {"learned": evaluate(self.config, mover_policy, looker, **held_out)}
+        if looker is not None:
+            result["camera_held"] = evaluate(self.config, mover_policy, FixedLooker(), **held_out)
+        result["random"] = evaluate(self.config, None, None, **held_out)
         record = {
             "frames": self.frames,
             "eval_seed": self.config.seed,
@@ -260,9 +266,10 @@ class _Run:
         }
         _write_json(self.out / EVAL, result | record)
         for name, values in result.items():
+            rate, mean_return, episodes = values["success_rate"], values["mean_return"], values["episodes"]
             print(
-                f"{name:>8}: success rate {values['success_rate']:.3f}, mean return {values['mean_return']:.3f} "
-                f"({values['episodes']} held-out episodes)"
+                f"{EVAL_NAMES[name]:>28}: success rate {rate:.3f}, mean return {mean_return:.3f} "
+                f"({episodes} held-out episodes)"
             )
         return result
 

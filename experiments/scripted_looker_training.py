@@ -4,13 +4,15 @@ Run from the repository root::
 
     python experiments/scripted_looker_training.py --looker track --frames 300000 --seed 0
     python experiments/scripted_looker_training.py --looker fixed --frames 300000 --seed 0   # Fixed_Forward
+    python experiments/scripted_looker_training.py --looker scan --version 2 --bearing-bins 30
 
 The mover is ``fixed_forward``'s (the TrainConfig defaults, A2C on the default room), but its environment runs a
 scripted looker of :data:`activeperc_env.scripted.LOOKERS` inside each cycle (``fixed``: the camera held forward,
 which is the Fixed_Forward baseline). After ``--frames`` frames the mover is evaluated with the same looker on
 ``--episodes`` held-out layouts (as ``activeperc-eval`` does) and one JSON line is printed. A gain over ``fixed`` is
 what a learned looker could add for this mover; scripted policies alone (``value_of_looking.py``) say what looking
-is worth to a mover that reads the goal's bearing off the image by design.
+is worth to a mover that reads the goal's bearing off the image by design. ``--version`` picks the room and
+``--bearing-bins`` the mover's bearing layout (``TrainConfig.bearing_bins``).
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ import time
 import torch
 from torch import nn
 
-from activeperc_env import scripted
+from activeperc_env import EnvConfig, scripted
 from activeperc_env.arguments import ArgumentParser, whole_number
+from activeperc_env.names import VERSIONS
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.evaluate import MAX_ROOMS, evaluate
 from activeperc_rl.methods import FixedForward
@@ -67,10 +70,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=whole_number, default=300_000, help="training frames (300000)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the run (0)")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
+    parser.add_argument("--version", type=int, choices=VERSIONS, default=EnvConfig().version, help="room version")
+    parser.add_argument("--bearing-bins", type=whole_number, default=0, help="the mover's bearing layout (0: none)")
     args = parser.parse_args(argv)
     if args.frames < 1 or args.episodes < 1:
         parser.error("--frames and --episodes must be >= 1")
-    config = TrainConfig(method="fixed_forward", frames=args.frames, seed=args.seed)
+    config = TrainConfig(
+        method="fixed_forward",
+        frames=args.frames,
+        seed=args.seed,
+        bearing_bins=args.bearing_bins,
+        env={"version": args.version},
+    )
     torch.manual_seed(config.seed)
     torch.set_num_threads(config.torch_threads)
     cls = FixedForward if args.looker == "fixed" else MoverWithScriptedLooker
@@ -86,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         method.close()
     minutes = round((time.perf_counter() - start) / 60, 1)
-    print(json.dumps({"looker": args.looker, "frames": frames, "seed": args.seed, "eval": result, "minutes": minutes}))
+    run = {"looker": args.looker, "version": args.version, "bearing_bins": args.bearing_bins, "frames": frames}
+    print(json.dumps(run | {"seed": args.seed, "eval": result, "minutes": minutes}))
     return 0
 
 

@@ -21,6 +21,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("tile_shading.py", ["--rooms", "0"], "--rooms must be >= 1, got 0"),
         ("scripted_looker_training.py", ["--frames", "0"], "--frames and --episodes must be >= 1"),
         ("scripted_looker_training.py", ["--looker", "peek"], "invalid choice: 'peek'"),
+        ("look_values.py", ["RUN", "--cycles", "0"], "--rooms and --cycles must be >= 1"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -54,3 +55,19 @@ def test_a_mover_trains_with_a_scripted_looker_in_its_loop():
 
     result = json.loads(done.stdout.strip().splitlines()[-1])
     assert result["looker"] == "scan" and result["frames"] >= 512 and result["eval"]["episodes"] == 2
+
+
+def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
+    from activeperc_rl import cli
+
+    out = tmp_path / "run"
+    tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
+    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--bearing-bins", "12", "--out", str(out)]) == 0
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "look_values.py"), str(out), "--rooms", "4", "--cycles", "20"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0].endswith("epsilon 0.3") and "Q(left)-Q(hold)" in lines[1]
+    assert lines[2].startswith("not in view") and lines[2].endswith("0.00 1.00 0.00")  # the untrained phi2 holds

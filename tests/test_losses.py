@@ -288,6 +288,71 @@ def test_importance_weights_remove_the_bias_of_a_meta_value_the_looks_do_not_cha
         assert torch.allclose(logits.logits.grad, expected, atol=1e-6), (weighted, logits.logits.grad)
 
 
+def look_td(actions=((0, 1, 2), (2, 1, 0))):
+    """D2 with the view before each look (the looker's pan) and after it (the mover's pan under "next"), V = pan:
+    credits room 0: 3 - 1 = 2, none at t1 (its move ended the episode), 1 - 2 = -1; room 1: 2 - 0 = 2, 3 - 3 = 0,
+    t2 padded."""
+    td = make_td(
+        values=[[0.0] * 3] * 2, done=[[F, T_, F], [F, F, F]], actions=list(actions), mask=[[T_] * 3, [T_, T_, F]]
+    )
+    td.set(("next", *LOOKER_PAN), torch.tensor([[1.0, 5.0, 2.0], [0.0, 3.0, 9.0]]).unsqueeze(-1))
+    td.set(("next", *PAN), torch.tensor([[3.0, 0.0, 1.0], [2.0, 3.0, 99.0]]).unsqueeze(-1))
+    return td
+
+
+def test_credit_per_look_is_the_value_the_look_added():
+    # uniform logits: sum_t log pi * M_t = -ln 3 * (2 - 1 + 2 + 0) = -3 ln 3 over 4 looks: mean loss 0.75 ln 3
+    ln3 = math.log(3.0)
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="look")(look_td(), reference_td())
+    assert out["loss_looker"].item() == pytest.approx(0.75 * ln3)
+    assert out["meta_value"].item() == pytest.approx(0.75)
+    assert out["meta_value_std"].item() == pytest.approx(math.sqrt(((1.25**2) * 2 + 1.75**2 + 0.75**2) / 4))
+    assert out["baseline"].item() == pytest.approx(6.0)  # D1's, reported
+    # importance weights as for the trajectory credit: probs (1/4, 1/2, 1/4), epsilon 0.3, rho (2.5, 0.625, 2.5)
+    # looks 0, 2 (M 2, -1) and 2, 1 (M 2, 0): sum rho log pi M = 2.5 ln(1/4) (2 - 1 + 2) = -15 ln 2, mean 3.75 ln 2
+    actor = make_actor(FixedLogits(torch.tensor([0.25, 0.5, 0.25]).log()))
+    loss = MetaEvaluationLoss(actor, pan_critic(), pan_critic(), behaviour_epsilon=0.3, credit="look")
+    assert loss(look_td(), reference_td())["loss_looker"].item() == pytest.approx(3.75 * math.log(2.0))
+
+
+def test_credit_per_look_needs_a_look_that_a_move_followed():
+    td = make_td(values=[[0.0, 0.0]], done=[[T_, T_]])
+    td.set(("next", *PAN), torch.zeros(1, 2, 1))
+    with pytest.raises(ValueError, match="no look that a move followed"):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="look")(td, reference_td())
+
+
+def every_look_td():
+    """D2 of one room, two cycles, with the pan after each look (left, hold, right) under ("looker", "look_views"),
+    V = pan: Q = (1, 0, 3) and (0, 0, -2)."""
+    td = make_td(values=[[0.0, 0.0]], done=[[F, F]])
+    td.set(("next", "looker", "look_views", "pan"), torch.tensor([[[1.0, 0.0, 3.0], [0.0, 0.0, -2.0]]]).unsqueeze(-1))
+    return td
+
+
+def test_credit_of_every_look_follows_the_expected_gradient():
+    # uniform pi: E = 4/3 and -2/3; d(sum_u pi (Q - E)) / d logit_k = pi_k (Q_k - E): (-1, -4, 5) / 9, (2, 2, -4) / 9,
+    # mean (1, -2, 1) / 18; the loss is its negative. meta_value: mean of E - Q(hold) = (4/3 - 2/3) / 2
+    logits = FixedLogits([0.0, 0.0, 0.0])
+    out = MetaEvaluationLoss(make_actor(logits), pan_critic(), pan_critic(), entropy_coeff=0.0, credit="every_look")(
+        every_look_td(), reference_td()
+    )
+    out["loss_looker"].backward()
+    assert torch.allclose(logits.logits.grad, torch.tensor([-1.0, 2.0, -1.0]) / 18, atol=1e-7)
+    assert out["meta_value"].item() == pytest.approx(1 / 3)
+    assert out["importance_weight"].item() == 1.0 and out["baseline"].item() == pytest.approx(6.0)
+
+
+def test_credit_of_every_look_needs_the_views_of_every_look():
+    with pytest.raises(ValueError, match="look_views=True"):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="every_look")(look_td(), reference_td())
+
+
+def test_a_bad_credit_is_named():
+    with pytest.raises(ValueError, match="credit must be one of \\('trajectory', 'look', 'every_look'\\), got 'step'"):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="step")
+
+
 @pytest.mark.parametrize("epsilon", [-0.1, 1.5, math.nan, "0.3", True])
 def test_a_bad_behaviour_epsilon_is_named(epsilon):
     with pytest.raises(

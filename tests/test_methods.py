@@ -12,6 +12,7 @@ from activeperc_env import EnvConfig
 from activeperc_rl.config import METHODS, TrainConfig
 from activeperc_rl.methods import finished_episodes, looker_transitions, make_method, soft_update, success_rate
 from activeperc_rl.models import (
+    BearingLayout,
     EpsilonGreedyLooker,
     FixedLooker,
     SplitJoint,
@@ -165,6 +166,27 @@ def test_encoder_names_an_image_of_another_layout():
     chw = torch.rand(2, 3, 60, 80)  # what TorchRL's ToTensorImage makes of the env's images
     with pytest.raises(ValueError, match=r"shape \(2, 3, 60, 80\).*ToTensorImage"):
         encoder(chw, torch.zeros(2, 1))
+
+
+def test_the_bearing_layout_puts_a_view_where_the_camera_looks():
+    """A feature seen at the view's left edge lands one pan step further left with the camera panned one step left,
+    and nothing lands where the camera does not look."""
+    layout = BearingLayout(bins=30, rows=2, fov=60.0, pan_range=120.0)  # 10-degree bins, -150 .. 150
+    features = torch.zeros(2, 1, 2, 8)
+    features[:, 0, :, 0] = 1.0  # the view's leftmost column (26 degrees left of the camera's axis)
+    laid = layout(features, torch.tensor([[0.0], [math.radians(30)]]))
+    bins = [row.nonzero().flatten().tolist() for row in laid[:, 0, 0]]
+    assert [layout.bearings[b].rad2deg().round().tolist() for b in bins] == [[25.0], [55.0]]
+    assert torch.equal(laid[:, :, 0], laid[:, :, 1])  # every row alike
+    seen = layout(torch.ones(1, 1, 2, 8), torch.zeros(1, 1))[0, 0, 0] > 0
+    assert layout.bearings[seen].abs().max() < math.radians(30) and seen.sum() == 6  # the 60 degrees in view
+
+
+def test_a_mover_with_the_bearing_layout_reads_the_pan_into_its_features():
+    encoder = make_encoder(EnvConfig(), (4,), 8, bearing_bins=12)
+    image, ranges = torch.randint(0, 256, (1, 60, 80, 3), dtype=torch.uint8), torch.ones(1, 13)
+    ahead, left = encoder(image, torch.zeros(1, 1), ranges), encoder(image, torch.full((1, 1), 0.5), ranges)
+    assert ahead.shape == left.shape == (1, 8) and not torch.equal(ahead, left)
 
 
 def test_curriculum_keeps_its_switch_point_on_resume():

@@ -8,10 +8,14 @@ import numpy as np
 import pytest
 import torch
 from conftest import assert_same_view, goal_seeking_move
-from tensordict.nn import ProbabilisticTensorDictModule, ProbabilisticTensorDictSequential, TensorDictModule
+from tensordict.nn import (
+    ProbabilisticTensorDictModule,
+    ProbabilisticTensorDictSequential,
+    TensorDictModule,
+)
 from torchrl.collectors import Collector
 from torchrl.envs import GymEnv, PettingZooWrapper
-from torchrl.envs.utils import check_env_specs
+from torchrl.envs.utils import ExplorationType, check_env_specs, set_exploration_type
 
 import activeperc_env
 from activeperc_rl.envs import ActivePerceptionEnv, make_env
@@ -309,6 +313,35 @@ def test_e1_e2_share_reset_seeds():
     assert not torch.equal(image1[:, 1:4], image2[:, 1:4])  # the cameras pan differently
     e1.close()
     e2.close()
+
+
+def test_a_hold_leaves_the_mover_the_view_the_looker_had():
+    """After 'hold' the mover's view is the looker's (what the credit per look of meta relies on: a hold adds
+    nothing); after a pan it is another."""
+    env = make_env(num_envs=3, looker=random_looker(), seed=0)
+    with set_exploration_type(ExplorationType.RANDOM):  # the looker samples its looks
+        data = env.rollout(12, break_when_any_done=False)
+    env.close()
+    step = data["next"]
+    holds = step["looker", "action"] == 1
+    assert holds.any() and (~holds).any()
+    for key in ("image", "pan", "range"):
+        before, after = step["looker", "observation", key], step["mover", "observation", key]
+        same = (before == after).reshape(*holds.shape, -1).all(-1)
+        assert same[holds].all()
+        if key == "pan":
+            assert not same[~holds & (before.abs() < 2).squeeze(-1)].any()  # a pan inside the limits turns the camera
+
+
+def test_the_views_of_every_look_are_recorded_on_request():
+    env = make_env(num_envs=2, looker=constant_looker(0), seed=0, look_views=True)
+    step = env.rollout(3)["next"]
+    env.close()
+    views = step["looker", "look_views"]
+    assert views["image"].shape == (2, 3, 3, 60, 80, 3) and views["pan"].shape == (2, 3, 3, 1)
+    assert torch.equal(views["image"][:, :, 1], step["looker", "observation", "image"])  # a hold: s_bar itself
+    assert torch.equal(views["pan"][:, :, 0], step["mover", "observation", "pan"])  # the look taken: pan left
+    assert "look_views" not in make_env(num_envs=1, looker=constant_looker(0)).full_observation_spec["looker"].keys()
 
 
 def test_collector_records_the_looker():

@@ -24,6 +24,7 @@ from activeperc_rl.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint
 from activeperc_rl.config import METHODS, TrainConfig
 from activeperc_rl.envs import make_env
 from activeperc_rl.methods import Meta
+from activeperc_rl.models import FixedLooker
 from activeperc_rl.rundir import claim_run_dir, new_run_dir
 from activeperc_rl.signals import stop_signals
 
@@ -464,7 +465,7 @@ def test_method_only_options_match_their_docs():
 
     docs = field_docs(TrainConfig)
     documented = {name: doc.split("'")[1] for name, doc in docs.items() if doc.split()[0][-2:] == "':"}
-    assert len(documented) == 8  # epsilon, alpha, ..., looker_importance_weights, curriculum_fraction
+    assert len(documented) == 10  # epsilon, alpha, ..., looker_credit, looker_optimizer, curriculum_fraction
     for name, method in documented.items():
         assert METHOD_OPTIONS[name] == (method,), name
 
@@ -639,20 +640,27 @@ def test_a_run_under_nohup_in_the_background_goes_on_after_a_hangup_and_a_ctrl_c
 
 
 def test_the_random_baseline_plays_the_random_policy(tmp_path, capsys, monkeypatch):
-    """The final evaluation scores the learned policy, then the random one; ``activeperc-eval --random`` the latter."""
+    """The final evaluation scores the learned policy, the learned mover with the camera held forward (where a learned
+    looker turns it), then the random one; ``activeperc-eval --random`` the latter."""
     played, real = [], evaluate.evaluate
 
     def spy(config, mover_policy=None, looker=None, *args, **kwargs):
-        played.append("random" if mover_policy is None and looker is None else "learned")
+        held = isinstance(looker, FixedLooker)
+        played.append("random" if mover_policy is None and looker is None else "held" if held else "learned")
         return real(config, mover_policy, looker, *args, **kwargs)
 
     monkeypatch.setattr(evaluate, "evaluate", spy)
     monkeypatch.setattr(train_module, "evaluate", spy)
     out = run_cli(tmp_path, "--method", "ia2c", "--frames", "64", "--eval-episodes", "2")
-    assert played == ["learned", "random"]
+    assert played == ["learned", "held", "random"]
+    assert set(json.loads((out / "eval.json").read_text())) >= {"learned", "camera_held", "random"}
+    assert "learned, camera held forward: success rate" in capsys.readouterr().out
     assert evaluate.main([str(out), "--episodes", "2", "--random", "--json"]) == 0
     assert evaluate.main([str(out), "--episodes", "2", "--json"]) == 0
-    assert played == ["learned", "random", "random", "learned"]
+    assert played == ["learned", "held", "random", "random", "learned"]
+    played.clear()
+    run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "2", name="ff")
+    assert played == ["learned", "random"]  # its camera is held forward already
 
 
 def test_eval_cli(tmp_path, capsys):
