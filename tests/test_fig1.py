@@ -484,7 +484,9 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
         mean, half = aggregate.mean_ci([float(r["final_success_rate"]) for r in runs])
         assert f"{mean:.2f} ± {half:.2f}" in readme, (method, mean, half)
     seed0 = next(r for r in rows if r["method"] == "meta_eps0.3" and r["seed"] == "0")
-    assert f"printed held-out success rates of {float(seed0['final_success_rate']):.2f} (learned)" in readme
+    row = "| `activeperc-train` (`meta`): the learned mover and looker | {:.2f} | {:.2f} ± {:.2f} |"
+    meta = [float(r["final_success_rate"]) for r in rows if r["method"] == "meta_eps0.3"]
+    assert row.format(float(seed0["final_success_rate"]), *aggregate.mean_ci(meta)) in readme
 
 
 def test_docs_quote_the_spread_of_the_committed_sweeps_beside_single_seeds(aggregate):
