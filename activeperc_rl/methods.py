@@ -294,6 +294,8 @@ class IA2C(_MoverA2C):
     ``s_bar_{t+1}`` and its reward is the next move's, ``r_{t+1}`` (see :func:`looker_transitions`).
     """
 
+    LOGGED = {"looker/pan_rate": "pan_rate", "looker/entropy": "looker_entropy"}
+
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.looker_actor, _, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
@@ -312,6 +314,8 @@ class IA2C(_MoverA2C):
             with torch.no_grad():
                 self.looker_loss.value_estimator(transitions)
             losses |= self._step("looker", self.looker_loss, transitions[valid])
+        losses["looker/pan_rate"] = _pan_rate(rollout)
+        losses["looker/entropy"] = _entropy(rollout.get(("next", LOOKER, "logits")))
         return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
 
     def policy(self):
@@ -321,6 +325,8 @@ class IA2C(_MoverA2C):
 
 class Joint(Method):
     """Joint: one agent picks (u_m, u_c) as one of 9 actions from the mover's view, trained by A2C."""
+
+    LOGGED = {"joint/pan_rate": "pan_rate", "joint/look_entropy": "looker_entropy"}
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
@@ -338,6 +344,9 @@ class Joint(Method):
         """One rollout, one A2C step."""
         rollout = self._next(self.collector)
         losses = self._step("joint", self.loss, rollout)
+        losses["joint/pan_rate"] = float((rollout.get((LOOKER, "action")) != HOLD).float().mean())
+        moves_by_looks = rollout.get((JOINT, "logits")).unflatten(-1, (NUM_ACTIONS, NUM_ACTIONS))  # a = 3 u_m + u_c
+        losses["joint/look_entropy"] = _entropy(moves_by_looks.logsumexp(-2))
         return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
 
     def policy(self):
@@ -542,6 +551,11 @@ def looker_transitions(rollout: TensorDictBase) -> tuple[TensorDict, torch.Tenso
 def _pan_rate(rollout: TensorDictBase) -> float:
     """The fraction of the looks of a looker-mode rollout that turned the camera."""
     return float((rollout.get(("next", LOOKER, "action")) != HOLD).float().mean())
+
+
+def _entropy(logits: torch.Tensor) -> float:
+    """The mean entropy of the categorical distributions with these ``logits`` (last dimension)."""
+    return float(torch.distributions.Categorical(logits=logits).entropy().mean())
 
 
 def success_rate(successes) -> float:

@@ -224,6 +224,18 @@ def test_meta_logs_its_meta_evaluator_and_looker_in_metrics_csv(tmp_path):
     assert float(rows[0]["e2_pan_rate"]) > 0  # epsilon 0.3 pans at random in E2
 
 
+@pytest.mark.parametrize("method", ["ia2c", "joint"])
+def test_baselines_with_a_looker_log_its_pan_rate_and_entropy_in_metrics_csv(tmp_path, method):
+    """The looks of ia2c's looker and of the joint agent: the fraction that turned the camera and the entropy of the
+    look (for the joint agent, of its marginal over the looks), one value per iteration."""
+    out = run_cli(tmp_path, "--method", method, "--frames", "200", "--eval-episodes", "0", "--looker-hold-prob", "0.5")
+    rows = read_metrics(out)
+    assert list(rows[0]) == [*METRIC_COLUMNS, "pan_rate", "looker_entropy"]
+    for row in rows:
+        assert 0 < float(row["pan_rate"]) < 1  # half of the untrained looks hold
+        assert math.log(3) - 0.2 < float(row["looker_entropy"]) <= math.log(3) + 1e-6  # (1/2, 1/4, 1/4): 1.04
+
+
 def test_a_resumed_run_keeps_the_rows_of_an_older_metrics_log(tmp_path):
     """A run logged before the method's columns existed resumes: its rows stay, blank in the new columns."""
     out = run_cli(tmp_path, "--frames", "100", "--eval-episodes", "0")
