@@ -44,7 +44,7 @@ METHOD_OPTIONS = {
     "looker_credit": ("meta",),
     "looker_optimizer": ("meta",),
     "looker_lr": ("meta", "ia2c"),
-    "looker_entropy_coeff": ("meta", "ia2c"),
+    "looker_entropy_coeff": ("meta", "ia2c", "joint", "curriculum"),
     "looker_hold_prob": ("meta", "ia2c", "joint", "curriculum"),
     "curriculum_fraction": ("curriculum",),
 }
@@ -104,9 +104,10 @@ class TrainConfig:
     full-size steps: at 3e-4 phi2 collapsed onto one pan within 125k frames in one of three seeds, pinning
     E1's camera at the pan limit; at 3e-5 it stayed near its start over 300k frames in all three."""
     entropy_coeff: float = 0.01
-    """Weight of the entropy bonus in the mover's (and the joint agent's) A2C loss."""
+    """Weight of the entropy bonus in the mover's A2C loss (for the joint agent, of its move's entropy)."""
     looker_entropy_coeff: float = 0.0
-    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C). Until the
+    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C; the joint agent's
+    look, given its move). Until the
     critic tells rooms apart it is phi2's only steady gradient, and Adam makes full-size steps of it: at 0.01
     phi2's entropy rose from 0.23 to 0.85 (1.10 is uniform) within about 30k frames, and phi1's argmax (E1's
     looks) panned in 5-30 % of E1's cycles from 50k frames on, before the mover had learned anything. E2

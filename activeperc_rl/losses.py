@@ -1,4 +1,5 @@
-"""The meta-evaluation loss of the perceptual policy (paper section 3, eq. 2).
+"""The losses of our own: the meta-evaluation loss of the perceptual policy (paper section 3, eq. 2) and the joint
+agent's A2C (:class:`JointA2CLoss`).
 
 The meta-evaluator
 ------------------
@@ -86,6 +87,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
 from tensordict.utils import NestedKey
+from torchrl.objectives import A2CLoss
 from torchrl.objectives.common import LossModule
 
 __all__ = ["MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
@@ -522,3 +524,25 @@ class MetaEvaluationLoss(LossModule):
             greedy = action == logits.argmax(dim=-1)
             behaviour = (1 - self.behaviour_epsilon) * greedy + self.behaviour_epsilon / looks
             return probs / behaviour
+
+
+class JointA2CLoss(A2CLoss):
+    """TorchRL's A2C for the joint agent (``a = 3 u_m + u_c``), whose entropy bonus weighs the move and the look
+    apart: ``entropy_coeff * H(u_m) + look_entropy_coeff * H(u_c | u_m)`` (the two add up to the joint entropy).
+
+    The logged ``entropy`` is the bonus divided by the larger coefficient: with ``look_entropy_coeff`` 0, the move's
+    entropy ``H(u_m)``.
+    """
+
+    def __init__(self, *args, entropy_coeff: float, look_entropy_coeff: float, **kwargs):
+        scale = max(entropy_coeff, look_entropy_coeff)
+        super().__init__(*args, entropy_coeff=scale, entropy_bonus=scale > 0, **kwargs)
+        self.move_weight = entropy_coeff / scale if scale else 0.0
+        self.look_weight = look_entropy_coeff / scale if scale else 0.0
+
+    def get_entropy_bonus(self, dist: torch.distributions.Categorical) -> torch.Tensor:
+        """``move_weight * H(u_m) + look_weight * H(u_c | u_m)`` of ``dist`` over the 9 joint actions."""
+        moves_by_looks = dist.logits.unflatten(-1, (3, 3))
+        move = torch.distributions.Categorical(logits=moves_by_looks.logsumexp(-1)).entropy()
+        look_given_move = dist.entropy() - move
+        return (self.move_weight * move + self.look_weight * look_given_move).unsqueeze(-1)

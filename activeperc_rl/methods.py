@@ -34,7 +34,7 @@ from activeperc_env.core import JOINT_ACTIONS, usable_cpus
 from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER
-from activeperc_rl.losses import MetaEvaluationLoss
+from activeperc_rl.losses import JointA2CLoss, MetaEvaluationLoss
 from activeperc_rl.models import (
     HOLD,
     JOINT,
@@ -92,14 +92,14 @@ class Method:
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
         cfg, owner = self.config, action_agent or agent
-        loss = A2CLoss(
-            actor,
-            critic,
-            entropy_coeff=cfg.looker_entropy_coeff if owner == LOOKER else cfg.entropy_coeff,
-            critic_coeff=cfg.critic_coeff,
-            loss_critic_type="l2",
-            functional=False,
-        )
+        common = dict(critic_coeff=cfg.critic_coeff, loss_critic_type="l2", functional=False)
+        if owner == JOINT:  # the move's entropy bonus and the look's apart, as the other methods weigh them
+            loss = JointA2CLoss(
+                actor, critic, entropy_coeff=cfg.entropy_coeff, look_entropy_coeff=cfg.looker_entropy_coeff, **common
+            )
+        else:
+            coeff = cfg.looker_entropy_coeff if owner == LOOKER else cfg.entropy_coeff
+            loss = A2CLoss(actor, critic, entropy_coeff=coeff, **common)
         loss.set_keys(
             reward=(agent, "reward"),
             action=(owner, "action"),

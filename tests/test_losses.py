@@ -10,7 +10,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_rl.losses import MetaEvaluationLoss, trajectory_ids, trajectory_means
+from activeperc_rl.losses import JointA2CLoss, MetaEvaluationLoss, trajectory_ids, trajectory_means
 
 PAN = ("mover", "observation", "pan")
 LOOKER_PAN = ("looker", "observation", "pan")
@@ -535,3 +535,41 @@ def test_nan_at_padded_steps_does_not_reach_the_gradients():
     (out["loss_looker"] + out["loss_entropy"]).backward()
     assert torch.isfinite(out["loss_looker"])
     assert all(torch.isfinite(p.grad).all() for p in actor.parameters())
+
+
+def _joint_loss(entropy_coeff, look_entropy_coeff):
+    encoder = nn.Linear(2, 9)
+    actor = ProbabilisticActor(
+        TensorDictModule(encoder, in_keys=["obs"], out_keys=[("joint", "logits")]),
+        in_keys={"logits": ("joint", "logits")},
+        out_keys=[("joint", "action")],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+        log_prob_key=("joint", "action_log_prob"),
+    )
+    critic = TensorDictModule(nn.Linear(2, 1), in_keys=["obs"], out_keys=["state_value"])
+    return JointA2CLoss(actor, critic, entropy_coeff=entropy_coeff, look_entropy_coeff=look_entropy_coeff)
+
+
+@pytest.mark.parametrize("coeffs", [(0.01, 0.0), (0.01, 0.01), (0.0, 0.02), (0.02, 0.005)])
+def test_the_joint_agents_entropy_bonus_weighs_the_move_and_the_look_apart(coeffs):
+    """The bonus is c_m H(u_m) + c_c H(u_c | u_m) of the 9 joint actions a = 3 u_m + u_c, whatever the coefficients."""
+    torch.manual_seed(0)
+    logits = torch.randn(5, 9) * 2
+    probs = torch.softmax(logits, -1).reshape(5, 3, 3)  # [u_m, u_c]
+    move = probs.sum(-1)
+    h_move = -(move * move.log()).sum(-1)
+    h_look_given_move = -(probs * (probs / move[..., None]).log()).sum((-1, -2))
+    loss = _joint_loss(*coeffs)
+    bonus = loss.entropy_coeff * loss.get_entropy_bonus(torch.distributions.Categorical(logits=logits)).squeeze(-1)
+    torch.testing.assert_close(bonus, coeffs[0] * h_move + coeffs[1] * h_look_given_move)
+
+
+def test_the_joint_agent_without_a_look_entropy_coeff_gets_no_push_towards_random_looks():
+    """With look_entropy_coeff 0, the bonus's gradient leaves how the looks split within each move alone."""
+    logits = torch.tensor([[3.0, 0.0, 0.0, 2.0, -1.0, 0.0, 0.0, 0.0, 1.0]], requires_grad=True)
+    _joint_loss(0.01, 0.0).get_entropy_bonus(torch.distributions.Categorical(logits=logits)).sum().backward()
+    grad = logits.grad.reshape(3, 3)
+    probs = torch.softmax(logits.detach(), -1).reshape(3, 3)
+    # within a move the gradient is proportional to the looks' probabilities: it only moves mass between the moves
+    torch.testing.assert_close(grad / probs, (grad.sum(-1) / probs.sum(-1))[:, None].expand(3, 3))
