@@ -22,6 +22,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("scripted_looker_training.py", ["--frames", "0"], "--frames and --episodes must be >= 1"),
         ("scripted_looker_training.py", ["--looker", "peek"], "invalid choice: 'peek'"),
         ("look_values.py", ["RUN", "--cycles", "0"], "--rooms and --cycles must be >= 1"),
+        ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -55,6 +56,48 @@ def test_a_mover_trains_with_a_scripted_looker_in_its_loop():
 
     result = json.loads(done.stdout.strip().splitlines()[-1])
     assert result["looker"] == "scan" and result["frames"] >= 512 and result["eval"]["episodes"] == 2
+
+
+def test_a_mover_with_memory_trains_with_a_scripted_looker_in_its_loop():
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "memory_mover_training.py"), "--looker", "scan", "--frames", "512",
+         "--episodes", "2", "--memory", "16", "--version", "2"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    import json
+
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["looker"] == "scan" and result["memory"] == 16 and 0 <= result["success"] <= 1
+
+
+def test_the_memory_movers_loss_replays_the_rollout_as_it_was_collected(monkeypatch):
+    """In the loss, the GRU runs over each room's rollout from the state it was collected with, reset where an
+    episode starts: the log-probabilities of the actions are those of the collection, across episode ends and from
+    one rollout to the next."""
+    import torch
+    from torchrl.collectors import Collector
+    from torchrl.modules import set_recurrent_mode
+
+    from activeperc_rl.config import TrainConfig
+
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    from memory_mover_training import MOVER, memory_actor_critic, memory_env
+
+    config = TrainConfig(method="fixed_forward", channels=(8,), hidden_size=32, env={"version": 2, "max_cycles": 10})
+    actor, _, gru = memory_actor_critic(config, 16)
+    collector = Collector(memory_env(config, "scan", gru, 4, "train"), actor, frames_per_batch=64, total_frames=192)
+    starts = 0
+    try:
+        for rollout in collector:
+            rollout = rollout.reshape(4, 16)
+            starts += int(rollout.get("is_init")[:, 1:].sum())
+            with set_recurrent_mode(True), torch.no_grad():
+                replayed = actor.get_dist(rollout.exclude((MOVER, "action"))).log_prob(rollout.get((MOVER, "action")))
+            torch.testing.assert_close(replayed, rollout.get((MOVER, "action_log_prob")))
+    finally:
+        collector.shutdown()
+    assert starts > 0  # episodes of 10 cycles started inside the 16-cycle rollouts
 
 
 def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
