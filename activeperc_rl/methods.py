@@ -344,7 +344,7 @@ class Joint(Method):
         """One rollout, one A2C step."""
         rollout = self._next(self.collector)
         losses = self._step("joint", self.loss, rollout)
-        losses["joint/pan_rate"] = float((rollout.get((LOOKER, "action")) != HOLD).float().mean())
+        losses["joint/pan_rate"] = _pan_rate(rollout, (LOOKER, "action"))  # external mode: the action at the root
         moves_by_looks = rollout.get((JOINT, "logits")).unflatten(-1, (NUM_ACTIONS, NUM_ACTIONS))  # a = 3 u_m + u_c
         losses["joint/look_entropy"] = _entropy(moves_by_looks.logsumexp(-2))
         return Iteration(rollout.numel(), *finished_episodes(rollout), losses)
@@ -548,9 +548,10 @@ def looker_transitions(rollout: TensorDictBase) -> tuple[TensorDict, torch.Tenso
     return transitions, ~done[..., :-1, 0]
 
 
-def _pan_rate(rollout: TensorDictBase) -> float:
-    """The fraction of the looks of a looker-mode rollout that turned the camera."""
-    return float((rollout.get(("next", LOOKER, "action")) != HOLD).float().mean())
+def _pan_rate(rollout: TensorDictBase, key: tuple[str, ...] = ("next", LOOKER, "action")) -> float:
+    """The fraction of the looks of a rollout that turned the camera (``key``: where the looks are; by default the
+    looker's record of a looker-mode rollout)."""
+    return float((rollout.get(key) != HOLD).float().mean())
 
 
 def _entropy(logits: torch.Tensor) -> float:
