@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 import torch
-from scripted_looker_training import ScriptedLooker
+from scripted_looker_training import ScriptedLooker, probe_arguments, probe_config
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.collectors import Collector
@@ -31,9 +31,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from torchrl.modules import GRUModule, ProbabilisticActor, set_recurrent_mode
 from torchrl.objectives import A2CLoss, ValueEstimators
 
-from activeperc_env import EnvConfig, scripted
-from activeperc_env.arguments import ArgumentParser, whole_number
-from activeperc_env.names import VERSIONS
+from activeperc_env.arguments import whole_number
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import MOVER, make_env
 from activeperc_rl.models import NUM_ACTIONS, make_encoder, observation_keys
@@ -79,8 +77,8 @@ def outcomes(rollout) -> tuple[list[bool], int]:
 
 
 def train(config: TrainConfig, looker_name: str, memory_size: int):
-    """A2C of the memory mover for ``config.frames`` frames; returns the actor, the GRU and the last training
-    successes."""
+    """A2C of the memory mover for ``config.frames`` frames, printing its training success every 50,000 frames;
+    returns the actor and its GRU."""
     actor, critic, gru = memory_actor_critic(config, memory_size)
     loss = A2CLoss(
         actor,
@@ -125,7 +123,7 @@ def train(config: TrainConfig, looker_name: str, memory_size: int):
                 break
     finally:
         collector.shutdown()
-    return actor, gru, window
+    return actor, gru
 
 
 def held_out(config: TrainConfig, looker_name: str, actor, gru: GRUModule, episodes: int) -> float:
@@ -150,28 +148,16 @@ def held_out(config: TrainConfig, looker_name: str, actor, gru: GRUModule, episo
 
 def main(argv: list[str] | None = None) -> int:
     """Train, evaluate, print one JSON line."""
-    parser = ArgumentParser(prog="memory_mover_training.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--looker", choices=sorted(scripted.LOOKERS), default="scan", help="scripted looker (scan)")
-    parser.add_argument("--frames", type=whole_number, default=300_000, help="training frames (300000)")
-    parser.add_argument("--seed", type=whole_number, default=0, help="seed of the run (0)")
-    parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
-    parser.add_argument("--version", type=int, choices=VERSIONS, default=EnvConfig().version, help="room version")
-    parser.add_argument("--bearing-bins", type=whole_number, default=0, help="the mover's bearing layout (0: none)")
+    parser = probe_arguments("memory_mover_training.py", __doc__.split("\n\n")[0], "scan")
     parser.add_argument("--memory", type=whole_number, default=128, help="the GRU's hidden size (128)")
     args = parser.parse_args(argv)
     if args.frames < 1 or args.episodes < 1 or args.memory < 1:
         parser.error("--frames, --episodes and --memory must be >= 1")
-    config = TrainConfig(
-        method="fixed_forward",
-        frames=args.frames,
-        seed=args.seed,
-        bearing_bins=args.bearing_bins,
-        env={"version": args.version},
-    )
+    config = probe_config(args)
     torch.manual_seed(config.seed)
     torch.set_num_threads(config.torch_threads)
     start = time.perf_counter()
-    actor, gru, window = train(config, args.looker, args.memory)
+    actor, gru = train(config, args.looker, args.memory)
     success = held_out(config, args.looker, actor, gru, args.episodes)
     run = {"looker": args.looker, "version": args.version, "bearing_bins": args.bearing_bins, "memory": args.memory}
     minutes = round((time.perf_counter() - start) / 60, 1)

@@ -63,25 +63,36 @@ class MoverWithScriptedLooker(FixedForward):
         return self.actor, ScriptedLooker(self.looker_name, self.config.env, MAX_ROOMS, self.config.seed)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Train, evaluate, print one JSON line."""
-    parser = ArgumentParser(prog="scripted_looker_training.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--looker", choices=sorted(scripted.LOOKERS), default="track", help="scripted looker (track)")
+def probe_arguments(prog: str, description: str, looker: str) -> ArgumentParser:
+    """The arguments of a probe with a scripted looker in the loop (``looker``: the default looker)."""
+    parser = ArgumentParser(prog=prog, description=description)
+    parser.add_argument("--looker", choices=sorted(scripted.LOOKERS), default=looker, help=f"the looker ({looker})")
     parser.add_argument("--frames", type=whole_number, default=300_000, help="training frames (300000)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the run (0)")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
     parser.add_argument("--version", type=int, choices=VERSIONS, default=EnvConfig().version, help="room version")
     parser.add_argument("--bearing-bins", type=whole_number, default=0, help="the mover's bearing layout (0: none)")
-    args = parser.parse_args(argv)
-    if args.frames < 1 or args.episodes < 1:
-        parser.error("--frames and --episodes must be >= 1")
-    config = TrainConfig(
+    return parser
+
+
+def probe_config(args) -> TrainConfig:
+    """``fixed_forward``'s config with the probe's budget, seed, room and bearing layout."""
+    return TrainConfig(
         method="fixed_forward",
         frames=args.frames,
         seed=args.seed,
         bearing_bins=args.bearing_bins,
         env={"version": args.version},
     )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Train, evaluate, print one JSON line."""
+    parser = probe_arguments("scripted_looker_training.py", __doc__.split("\n\n")[0], "track")
+    args = parser.parse_args(argv)
+    if args.frames < 1 or args.episodes < 1:
+        parser.error("--frames and --episodes must be >= 1")
+    config = probe_config(args)
     torch.manual_seed(config.seed)
     torch.set_num_threads(config.torch_threads)
     cls = FixedForward if args.looker == "fixed" else MoverWithScriptedLooker
