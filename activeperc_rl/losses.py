@@ -440,18 +440,8 @@ class MetaEvaluationLoss(LossModule):
             loss_looker = loss_looker / log_prob.numel()
             loss_entropy = loss_entropy / log_prob.numel()
 
-        out = TensorDict({"loss_looker": loss_looker}, batch_size=[])
-        if self._entropy_bonus:
-            out.set("loss_entropy", loss_entropy)
-        dtype = meta.dtype
-        out.set("entropy", entropy.detach().mean())
-        out.set("importance_weight", rho.mean() if rho.numel() else torch.ones((), dtype=dtype, device=meta.device))
-        out.set("meta_value", meta.mean())
-        out.set("meta_value_std", meta.std(correction=0))
-        out.set("baseline", baseline.detach())
-        out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
-        out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
-        return out
+        weight = rho.mean() if rho.numel() else None
+        return self._output(loss_looker, loss_entropy, entropy, weight, meta, baseline, num, num_ref)
 
     def _every_look(
         self, record: TensorDictBase, mask: torch.Tensor, baseline: torch.Tensor, num: int, num_ref: int
@@ -484,17 +474,22 @@ class MetaEvaluationLoss(LossModule):
         if self.reduction == "mean":
             loss_looker, loss_entropy = loss_looker / len(q), loss_entropy / len(q)
         meta = (expected - q[:, HOLD_LOOK]).detach()
+        return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref)
+
+    def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref):
+        """The loss's tensordict: the losses, and the diagnostics of the looks (``importance_weight`` ``None``: 1)."""
+        dtype, device = meta.dtype, meta.device
         out = TensorDict({"loss_looker": loss_looker}, batch_size=[])
         if self._entropy_bonus:
             out.set("loss_entropy", loss_entropy)
-        dtype = meta.dtype
         out.set("entropy", entropy.detach().mean())
-        out.set("importance_weight", torch.ones((), dtype=dtype, device=meta.device))
+        ones = torch.ones((), dtype=dtype, device=device)
+        out.set("importance_weight", ones if importance_weight is None else importance_weight)
         out.set("meta_value", meta.mean())
         out.set("meta_value_std", meta.std(correction=0))
         out.set("baseline", baseline.detach())
-        out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=meta.device))
-        out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=meta.device))
+        out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=device))
+        out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=device))
         return out
 
     def _look_values(self, record: TensorDictBase, mask: torch.Tensor) -> torch.Tensor:
