@@ -90,11 +90,12 @@ from tensordict.utils import NestedKey
 from torchrl.objectives import A2CLoss
 from torchrl.objectives.common import LossModule
 
+from activeperc_env.core import HOLD
+from activeperc_rl.config import LOOKER_CREDITS
+
 __all__ = ["MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
 
 _REDUCTIONS = ("mean", "sum")
-CREDITS = ("trajectory", "look", "every_look")
-HOLD_LOOK = 1  # the index of 'hold' among the looks
 
 
 def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
@@ -264,8 +265,8 @@ class MetaEvaluationLoss(LossModule):
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
-        if credit not in CREDITS:
-            raise ValueError(f"credit must be one of {CREDITS}, got {credit!r}.")
+        if credit not in LOOKER_CREDITS:
+            raise ValueError(f"credit must be one of {LOOKER_CREDITS}, got {credit!r}.")
         if behaviour_epsilon is not None and not (
             isinstance(behaviour_epsilon, numbers.Real)
             and not isinstance(behaviour_epsilon, bool)
@@ -473,7 +474,7 @@ class MetaEvaluationLoss(LossModule):
         loss_looker, loss_entropy = -gain.sum(), -self.entropy_coeff * entropy.sum()
         if self.reduction == "mean":
             loss_looker, loss_entropy = loss_looker / len(q), loss_entropy / len(q)
-        meta = (expected - q[:, HOLD_LOOK]).detach()
+        meta = (expected - q[:, HOLD]).detach()
         return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref)
 
     def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref):
