@@ -27,12 +27,11 @@ from activeperc_rl.config import (
     COLLECTORS,
     DEVICES,
     E1_LOOKS,
-    METHOD_OPTIONS,
-    METHODS,
     MOVER_ROLLOUTS,
     TrainConfig,
     load_yaml,
 )
+from activeperc_rl.methods import METHOD_OPTIONS, METHODS, unused_options
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt
 
@@ -92,7 +91,7 @@ def unused_options_warning(args: argparse.Namespace, config: TrainConfig) -> str
         return None
     preset = load_yaml(args.config) if args.config is not None else {}
     given = [k for k in vars(args) if k not in RUN_OPTIONS] + list(preset)
-    unused = config.unused(dict.fromkeys(given))
+    unused = unused_options(config, dict.fromkeys(given))
     if not unused:
         return None
     named = ", ".join(f"{name} (read by {_listed(METHOD_OPTIONS[name])} only)" for name in unused)

@@ -25,29 +25,12 @@ from activeperc_env.config import is_int, is_number, normalize_numbers, saved_ro
 from activeperc_env.core import MAX_ENVS, MAX_SEED
 from activeperc_rl.atomic import atomic_path
 
-METHODS = ("meta", "fixed_forward", "joint", "ia2c", "curriculum")
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
 COLLECTORS = ("process", "ray")
 LOOKER_CREDITS = ("trajectory", "look", "every_look")
 OPTIMIZERS = ("adam", "sgd")
-# The options that only some methods read; every other option is read by every method.
-METHOD_OPTIONS = {
-    "epsilon": ("meta",),
-    "alpha": ("meta",),
-    "shared_seeds": ("meta",),
-    "resample_d1": ("meta",),
-    "e1_looks": ("meta",),
-    "mover_rollouts": ("meta",),
-    "looker_importance_weights": ("meta",),
-    "looker_credit": ("meta",),
-    "looker_optimizer": ("meta",),
-    "looker_lr": ("meta", "ia2c"),
-    "looker_entropy_coeff": ("meta", "ia2c", "joint", "curriculum"),
-    "looker_hold_prob": ("meta", "ia2c", "joint", "curriculum"),
-    "curriculum_fraction": ("curriculum",),
-}
 
 
 @with_field_docs
@@ -188,7 +171,7 @@ class TrainConfig:
             object.__setattr__(self, "channels", tuple(int(c) if is_int(c) else c for c in self.channels))
         normalize_numbers(self)
         checks = {
-            "method": (self.method in METHODS, f"one of {METHODS}"),
+            "method": (self.method in _methods(), f"one of {_methods()}"),
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
             "num_envs": (_int_in(self.num_envs, 1, MAX_ENVS), f"an int in 1 .. {MAX_ENVS}"),
             "rollout_length": (_int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
@@ -272,10 +255,6 @@ class TrainConfig:
             values = values | {"env": saved_room(env)}
         return cls.from_dict(values)
 
-    def unused(self, names) -> list[str]:
-        """Those of the option ``names`` that this config's method does not read (:data:`METHOD_OPTIONS`)."""
-        return [name for name in names if self.method not in METHOD_OPTIONS.get(name, METHODS)]
-
     def to_dict(self) -> dict:
         """The config as plain YAML-ready values (the env config nested under ``env``)."""
         values = dataclasses.asdict(self)
@@ -331,6 +310,13 @@ def load_yaml(path: str | Path) -> dict:
     if not isinstance(values, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
     return values
+
+
+def _methods() -> tuple[str, ...]:
+    """The training methods' names, from their classes (:data:`activeperc_rl.methods.METHOD_CLASSES`)."""
+    from activeperc_rl.methods import METHODS
+
+    return METHODS
 
 
 def _int_in(value, low: int, high: int) -> bool:

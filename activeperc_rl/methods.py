@@ -71,6 +71,10 @@ class Method:
         device: where the networks run.
     """
 
+    name: str
+    """The method's name in configs and on the command line (``--method``)."""
+    READS: tuple[str, ...] = ()
+    """The :class:`TrainConfig` options this method reads beyond those every method reads."""
     LOGGED: dict[str, str] = {}
     """The entries of :attr:`Iteration.losses` that ``metrics.csv`` holds too, and their columns there."""
 
@@ -268,6 +272,8 @@ class FixedForward(_MoverA2C):
     looker view is rendered.
     """
 
+    name = "fixed_forward"
+
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
         self.fixed_policy = TensorDictSequential(self.actor, FixedLooker())
@@ -294,6 +300,8 @@ class IA2C(_MoverA2C):
     ``s_bar_{t+1}`` and its reward is the next move's, ``r_{t+1}`` (see :func:`looker_transitions`).
     """
 
+    name = "ia2c"
+    READS = ("looker_lr", "looker_entropy_coeff", "looker_hold_prob")
     LOGGED = {"looker/pan_rate": "pan_rate", "looker/entropy": "looker_entropy"}
 
     def __init__(self, config: TrainConfig, device: torch.device):
@@ -326,6 +334,8 @@ class IA2C(_MoverA2C):
 class Joint(Method):
     """Joint: one agent picks (u_m, u_c) as one of 9 actions from the mover's view, trained by A2C."""
 
+    name = "joint"
+    READS = ("looker_entropy_coeff", "looker_hold_prob")
     LOGGED = {"joint/pan_rate": "pan_rate", "joint/look_entropy": "looker_entropy"}
 
     def __init__(self, config: TrainConfig, device: torch.device):
@@ -357,6 +367,9 @@ class Joint(Method):
 class Curriculum(Joint):
     """Curriculum: :class:`Joint` trained in an empty room for ``curriculum_fraction`` of the frames, then with
     the configured obstacles (same networks and optimizer)."""
+
+    name = "curriculum"
+    READS = (*Joint.READS, "curriculum_fraction")
 
     def __init__(self, config: TrainConfig, device: torch.device):
         super().__init__(config, device)
@@ -410,6 +423,21 @@ class Meta(_MoverA2C):
     6. copy w1 -> w2.
     """
 
+    name = "meta"
+    READS = (
+        "epsilon",
+        "alpha",
+        "shared_seeds",
+        "resample_d1",
+        "e1_looks",
+        "mover_rollouts",
+        "looker_importance_weights",
+        "looker_credit",
+        "looker_optimizer",
+        "looker_lr",
+        "looker_entropy_coeff",
+        "looker_hold_prob",
+    )
     LOGGED = {
         "looker/meta_value": "meta_value",
         "looker/meta_value_std": "meta_value_std",
@@ -482,13 +510,21 @@ class Meta(_MoverA2C):
         return self.actor, self.e1_looker
 
 
-METHOD_CLASSES = {
-    "meta": Meta,
-    "fixed_forward": FixedForward,
-    "joint": Joint,
-    "ia2c": IA2C,
-    "curriculum": Curriculum,
+METHOD_CLASSES = {cls.name: cls for cls in (Meta, FixedForward, Joint, IA2C, Curriculum)}
+"""The training methods by name: the one registry that ``--method``, the config's check and the option tables
+read."""
+METHODS = tuple(METHOD_CLASSES)
+METHOD_OPTIONS = {
+    option: tuple(name for name, cls in METHOD_CLASSES.items() if option in cls.READS)
+    for option in dict.fromkeys(option for cls in METHOD_CLASSES.values() for option in cls.READS)
 }
+"""The options that only some methods read, and those methods; every other option is read by every method."""
+
+
+def unused_options(config: TrainConfig, names) -> list[str]:
+    """Those of the option ``names`` that ``config``'s method does not read."""
+    reads = METHOD_CLASSES[config.method].READS
+    return [name for name in names if name in METHOD_OPTIONS and name not in reads]
 
 
 def make_method(config: TrainConfig, device: torch.device, start: bool = True) -> Method:

@@ -99,7 +99,8 @@ def breakdown(method_name: str, num_envs: int, iterations: int, warmup_iters: in
 
 def main() -> None:
     """Parse the flags, time the iterations and print the breakdown."""
-    from activeperc_rl.config import METHODS, TrainConfig
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import METHODS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--method", choices=METHODS, default="meta", help="the method to time (meta)")

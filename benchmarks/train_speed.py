@@ -169,7 +169,8 @@ def combine(results: list[dict]) -> dict:
 
 def main() -> None:
     """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
-    from activeperc_rl.config import COLLECTORS, DEVICES, METHODS, TrainConfig, resolve_device
+    from activeperc_rl.config import COLLECTORS, DEVICES, TrainConfig, resolve_device
+    from activeperc_rl.methods import METHODS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(

@@ -1,5 +1,6 @@
 """Pieces of the training methods on hand-made inputs: soft update, the looker's transitions, lookers."""
 
+import dataclasses
 import math
 
 import pytest
@@ -9,8 +10,8 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
-from activeperc_rl.config import METHODS, TrainConfig
-from activeperc_rl.methods import finished_episodes, looker_transitions, make_method, soft_update, success_rate
+from activeperc_rl.config import TrainConfig
+from activeperc_rl.methods import METHODS, finished_episodes, looker_transitions, make_method, soft_update, success_rate
 from activeperc_rl.models import (
     BearingLayout,
     EpsilonGreedyLooker,
@@ -398,3 +399,16 @@ def test_curriculum_trains_in_the_empty_room_then_with_the_obstacles():
     finally:
         curriculum.close()
     assert logged == [0.0, 3.0]
+
+
+def test_method_registry_names_real_options_and_feeds_the_cli():
+    """Each method class's READS are TrainConfig fields, and --method offers exactly the registered classes."""
+    from activeperc_rl import cli
+    from activeperc_rl.methods import METHOD_CLASSES
+
+    fields = {f.name for f in dataclasses.fields(TrainConfig)}
+    for name, cls in METHOD_CLASSES.items():
+        assert cls.name == name
+        assert set(cls.READS) <= fields, name
+    method_flag = next(a for a in cli.build_parser()._actions if a.dest == "method")
+    assert tuple(method_flag.choices) == METHODS

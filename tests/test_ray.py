@@ -11,7 +11,7 @@ from test_train import read_metrics, run_cli, wait_for_rows
 
 from activeperc_rl import cli
 from activeperc_rl.checkpoint import load_checkpoint
-from activeperc_rl.config import METHODS
+from activeperc_rl.methods import METHODS
 
 RAY = ["--collect-workers", "2", "--collector", "ray"]
 

@@ -21,9 +21,9 @@ from conftest import PseudoTerminal, assert_same_run, default_stop_signals
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
 from activeperc_rl.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint, save_checkpoint
-from activeperc_rl.config import METHODS, TrainConfig
+from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import make_env
-from activeperc_rl.methods import Meta
+from activeperc_rl.methods import METHODS, Meta
 from activeperc_rl.models import FixedLooker
 from activeperc_rl.rundir import claim_run_dir, new_run_dir
 from activeperc_rl.signals import stop_signals
@@ -465,7 +465,7 @@ def test_options_the_method_does_not_read_are_named(tmp_path):
     args = cli.build_parser().parse_args(["--method", "fixed_forward", "--looker-hold-prob", "0.5", "--looker-lr", "1"])
     warning = cli.unused_options_warning(args, cli.config_from_args(args))
     assert warning.endswith(
-        "looker_hold_prob (read by meta, ia2c, joint and curriculum only), looker_lr (read by meta and ia2c only)"
+        "looker_hold_prob (read by meta, joint, ia2c and curriculum only), looker_lr (read by meta and ia2c only)"
     )
     assert cli.unused_options_warning(cli.build_parser().parse_args(["--epsilon", "0.1"]), TrainConfig()) is None
 
@@ -473,7 +473,7 @@ def test_options_the_method_does_not_read_are_named(tmp_path):
 def test_method_only_options_match_their_docs():
     """A field documented as one method's ("'meta': ...") is listed as that method's alone."""
     from activeperc_env.config import field_docs
-    from activeperc_rl.config import METHOD_OPTIONS
+    from activeperc_rl.methods import METHOD_OPTIONS
 
     docs = field_docs(TrainConfig)
     documented = {name: doc.split("'")[1] for name, doc in docs.items() if doc.split()[0][-2:] == "':"}
