@@ -22,6 +22,7 @@ import mujoco.batch
 import numpy as np
 
 from activeperc_env import names, sensors
+from activeperc_env.checks import check_actions, check_seed
 from activeperc_env.config import EnvConfig, is_int, physics_steps, saved_room
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
@@ -32,7 +33,6 @@ LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
-MAX_SEED = 2**63 - 1  # the largest seed a room takes (seeds travel as int64 through the batched APIs)
 MAX_ENVS = 2**16  # the most rooms one simulator holds (a room takes about 0.6 MB, its view included)
 STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what every state of get_state holds
 OUTCOME_KEYS = ("success", "episode_return")  # what get_state holds too; states saved before them lack them
@@ -188,7 +188,7 @@ class Simulator:
         Args:
             ids: the rooms to reset (all when ``None``), distinct and increasing.
             seeds: ``None``, or one seed per reset room (an int is broadcast), each an int in
-                [0, ``MAX_SEED``]: a room given a seed restarts its random stream from it. Without seeds
+                [0, 2**63 - 1]: a room given a seed restarts its random stream from it. Without seeds
                 the rooms draw their layouts from their streams.
         """
         ids = self._as_ids(ids, changed=True)
@@ -246,7 +246,7 @@ class Simulator:
             ids: the rooms that move (all when ``None``), distinct and increasing; none of them may be done.
         """
         ids = self._as_ids(ids, changed=True)
-        actions = check_actions(actions, ids, MOVER_ACTIONS, "mover")
+        actions = check_actions(actions, len(ids), len(MOVER_ACTIONS), "mover", MOVER_ACTIONS)
         self.require_started("move()", ids)
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
@@ -299,7 +299,7 @@ class Simulator:
             ids: the rooms whose camera turns (all when ``None``), distinct and increasing.
         """
         ids = self._as_ids(ids, changed=True)
-        actions = check_actions(actions, ids, LOOKER_ACTIONS, "looker")
+        actions = check_actions(actions, len(ids), len(LOOKER_ACTIONS), "looker", LOOKER_ACTIONS)
         self.require_started("look()", ids)
         before = self._qpos[ids, self._ids.pan]
         pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
@@ -415,7 +415,7 @@ class Simulator:
         """Bird's-eye map of room ``index`` with the camera's view cone: (240, 320, 3) uint8."""
         index = self._as_index(index)
         self.require_started("render_map()", index)
-        return self.renderer.render_map(self._qpos[index], self._mocap_pos[index], self.config.fov)
+        return self.renderer.render_map(self._qpos[index], self._mocap_pos[index])
 
     def pose(self, index: int = 0) -> tuple[np.ndarray, float, float]:
         """Robot position (x, y), heading and camera pan of room ``index``, for scripts and tests."""
@@ -448,7 +448,9 @@ class Simulator:
     def renderer(self) -> TiledRenderer:
         """The renderer, created on first use so that physics-only users need no GL."""
         if self._renderer is None:
-            self._renderer = TiledRenderer(self.model, self.config.width, self.config.height, self.num_envs)
+            self._renderer = TiledRenderer(
+                self.model, self.config.width, self.config.height, self.num_envs, self.config.fov
+            )
         return self._renderer
 
     def close(self) -> None:
@@ -504,39 +506,19 @@ class _Ids:
 
 
 def _check_seeds(seeds, ids: np.ndarray) -> list[int]:
-    """One seed per room of ``ids`` (an int is broadcast), each an int in [0, MAX_SEED]; else ``ValueError``."""
+    """One seed per room of ``ids`` (an int is broadcast), each a seed (``checks.check_seed``); else ``ValueError``."""
     if isinstance(seeds, np.ndarray) and seeds.ndim == 0:
         seeds = seeds.item()
     if is_int(seeds):
         seeds = [seeds] * len(ids)
     if not isinstance(seeds, (list, tuple, np.ndarray)) or len(seeds) != len(ids):
         raise ValueError(f"seeds={seeds!r} invalid: expected an int or {len(ids)} ints, one per reset room")
-    for seed in seeds:
-        if not (is_int(seed) and 0 <= seed <= MAX_SEED):
-            raise ValueError(f"seed {seed!r} is invalid: expected an int in [0, 2**63 - 1]")
-    return [int(seed) for seed in seeds]
+    return [check_seed(seed, f"seeds[{k}]" if len(seeds) > 1 else "seed") for k, seed in enumerate(seeds)]
 
 
 def split_joint(action):
     """``(u_m, u_c)`` of joint actions ``a = 3 u_m + u_c`` (an int or a numpy array of them)."""
     return divmod(action, len(LOOKER_ACTIONS))
-
-
-def check_actions(actions, ids: np.ndarray, meanings: tuple[str, ...], agent: str) -> np.ndarray:
-    """``actions`` for the rooms ``ids`` as an int64 array; ``ValueError`` naming the agent and its action space
-    unless they are one int of ``Discrete(len(meanings))`` per room."""
-    arr = np.asarray(actions)
-    if arr.size == 0 and len(ids) == 0:
-        return np.zeros(0, dtype=np.int64)
-    if arr.shape == () and len(ids) == 1:
-        arr = arr.reshape(1)
-    if arr.shape != ids.shape or not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(
-            f"{agent} actions {actions!r} invalid: expected {len(ids)} int(s) in Discrete({len(meanings)}) {meanings}"
-        )
-    if arr.size and (arr.min() < 0 or arr.max() >= len(meanings)):
-        raise ValueError(f"{agent} actions {arr.tolist()} out of range of Discrete({len(meanings)}) {meanings}")
-    return arr.astype(np.int64)
 
 
 def usable_cpus() -> int:

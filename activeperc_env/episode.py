@@ -15,8 +15,8 @@ import imageio.v3 as iio
 import numpy as np
 
 from activeperc_env.arguments import ArgumentParser
+from activeperc_env.checks import is_seed
 from activeperc_env.config import EnvConfig
-from activeperc_env.core import MAX_SEED
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, parallel_env
 from activeperc_env.render import side_by_side
 
@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--no-video", action="store_true", help="skip episode.mp4")
     args = parser.parse_args(argv)
-    if not 0 <= args.seed <= MAX_SEED:
+    if not is_seed(args.seed):
         parser.error(f"--seed={args.seed} is invalid: expected an int in [0, 2**63 - 1]")
     if args.out.exists() and not args.out.is_dir():
         parser.error(f"--out {str(args.out)!r} is a file, not a folder")

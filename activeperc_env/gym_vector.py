@@ -14,8 +14,9 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from activeperc_env.checks import check_actions, check_seed
 from activeperc_env.config import EnvConfig, is_int
-from activeperc_env.core import HOLD, JOINT_ACTIONS, MAX_SEED, MoveResult, Simulator, split_joint
+from activeperc_env.core import HOLD, JOINT_ACTIONS, MoveResult, Simulator, split_joint
 from activeperc_env.spaces import mover_space, observation_space
 
 
@@ -105,7 +106,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         """
         if not self.sim.started().all():
             raise ResetNeeded("step() before reset(): call reset() first")
-        actions = self._check_actions(actions)
+        actions = check_actions(actions, self.num_envs, int(self.single_action_space.n), self.AGENT)
         moves, looks = self._split(actions)
         if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
             raise RuntimeError(
@@ -191,22 +192,13 @@ class _SingleAgentVectorEnv(VectorEnv):
         if seed is None:
             return [None] * self.num_envs
         if is_int(seed):
-            if not 0 <= seed <= MAX_SEED - (self.num_envs - 1):
-                raise ValueError(
-                    f"seed={int(seed)} is invalid: room i gets seed + i, so with {self.num_envs} rooms it must be an "
-                    f"int in [0, 2**63 - {self.num_envs}]"
-                )
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == self.num_envs:
-            seeds = [int(s) if is_int(s) else s for s in seed]
-        else:
+            first = check_seed(seed, rooms=self.num_envs)
+            return [first + i for i in range(self.num_envs)]
+        if not isinstance(seed, (list, tuple, np.ndarray)) or len(seed) != self.num_envs:
             raise ValueError(
                 f"seed={seed!r} is invalid: expected None, an int or a list of {self.num_envs} ints or None"
             )
-        for room, s in enumerate(seeds):
-            if s is not None and not (is_int(s) and 0 <= s <= MAX_SEED):
-                raise ValueError(f"seed {s!r} of room {room} is invalid: expected None or an int in [0, 2**63 - 1]")
-        return seeds
+        return [None if s is None else check_seed(s, f"seed[{room}]") for room, s in enumerate(seed)]
 
     def _reset_mask(self, options: dict | None) -> np.ndarray:
         """``options["reset_mask"]`` taken out of ``options`` and checked (as ``SyncVectorEnv`` does), or all rooms."""
@@ -223,18 +215,8 @@ class _SingleAgentVectorEnv(VectorEnv):
             raise ValueError("options['reset_mask'] marks no room: expected at least one True")
         return mask
 
-    def _check_actions(self, actions) -> np.ndarray:
-        array = np.asarray(actions)
-        space = self.single_action_space
-        if array.shape != (self.num_envs,) or not np.issubdtype(array.dtype, np.integer):
-            raise ValueError(
-                f"actions {actions!r} are invalid: expected {self.num_envs} ints in the action space {space}"
-            )
-        outside = np.flatnonzero((array < 0) | (array >= space.n))
-        if outside.size:
-            i = outside[0]
-            raise ValueError(f"action {array[i].item()!r} of room {i} is outside the action space {space}")
-        return array.astype(np.int64)
+    AGENT = ""
+    """What errors call the agent that acts."""
 
     def _agent_space(self) -> gym.spaces.Discrete:
         raise NotImplementedError
@@ -246,6 +228,8 @@ class _SingleAgentVectorEnv(VectorEnv):
 class JointVectorEnv(_SingleAgentVectorEnv):
     """N rooms of ``activeperc/Joint-v1``: actions ``3 * u_m + u_c``, one ``Discrete(9)`` per room."""
 
+    AGENT = "joint agent"
+
     def _agent_space(self) -> gym.spaces.Discrete:
         return gym.spaces.Discrete(JOINT_ACTIONS)
 
@@ -255,6 +239,8 @@ class JointVectorEnv(_SingleAgentVectorEnv):
 
 class FixedForwardVectorEnv(_SingleAgentVectorEnv):
     """N rooms of ``activeperc/FixedForward-v1``: the mover's action per room, the camera held forward."""
+
+    AGENT = "mover"
 
     def _agent_space(self) -> gym.spaces.Discrete:
         return mover_space()

@@ -33,10 +33,11 @@ class TiledRenderer:
         width, height: size of one first-person view in pixels.
         max_views: the views the offscreen buffer is sized for: one pass draws them all as tiles, up to a
             buffer of ``MAX_BUFFER`` pixels a side; a ``render`` call with more views takes several passes.
+        fov: horizontal field of view of the robot's camera in degrees, for the maps' view cone.
     """
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int):
-        self.width, self.height = width, height
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int, fov: float):
+        self.width, self.height, self.fov = width, height, fov
         self.cols = max(1, min(max_views, MAX_BUFFER // width))
         self.rows = max(1, min(math.ceil(max_views / self.cols), MAX_BUFFER // height))
         buf_w = max(self.cols * width, MAP_SIZE[0])
@@ -139,14 +140,13 @@ class TiledRenderer:
         grid = grid[:, ::-1].transpose(0, 2, 1, 3, 4).reshape(-1, self.height, self.width, 3)
         out[views] = grid[tiles]
 
-    def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray, fov: float) -> np.ndarray:
+    def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Bird's-eye map of one simulation, with the camera's view cone (orange) and the base's heading (a white
         line from its centre) drawn in.
 
         Args:
             qpos: (nq,) joint positions.
             mocap_pos: (nmocap, 3) positions of the goal and occluders.
-            fov: horizontal field of view of the robot's camera, in degrees.
 
         Returns:
             (240, 320, 3) uint8 image, north (+y) up.
@@ -161,7 +161,7 @@ class TiledRenderer:
             mujoco.mjtCatBit.mjCAT_ALL,
             self._scene,
         )
-        self._add_view_cone(fov)
+        self._add_view_cone()
         self._add_heading()
         width, height = MAP_SIZE
         rect = mujoco.MjrRect(0, 0, width, height)
@@ -192,14 +192,14 @@ class TiledRenderer:
         mujoco.mj_kinematics(self._model, self._data)
         mujoco.mj_camlight(self._model, self._data)
 
-    def _add_view_cone(self, fov: float) -> None:
+    def _add_view_cone(self) -> None:
         """Append two orange lines from the camera along the edges of its horizontal field of view."""
         cam_id = self._eye.fixedcamid
         origin = self._data.cam_xpos[cam_id].copy()
         forward = -self._data.cam_xmat[cam_id].reshape(3, 3)[:, 2]
         yaw = math.atan2(forward[1], forward[0])
         for edge in (-0.5, 0.5):
-            angle = yaw + math.radians(fov) * edge
+            angle = yaw + math.radians(self.fov) * edge
             tip = origin + CONE_LENGTH * np.array([math.cos(angle), math.sin(angle), 0.0])
             self._add_line(origin, tip, (1.0, 0.55, 0.0))
 

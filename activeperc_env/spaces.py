@@ -7,6 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
+from activeperc_env.checks import check_actions
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS
 from activeperc_env.names import ROOM_HALF_X, ROOM_HALF_Y
@@ -50,11 +51,5 @@ def looker_space() -> spaces.Discrete:
 
 
 def check_action(agent: str, action, space: spaces.Discrete) -> int:
-    """Return ``action`` as an int, or raise ``ValueError`` naming the agent and its space."""
-    scalar_array = isinstance(action, np.ndarray) and action.shape == () and np.issubdtype(action.dtype, np.integer)
-    is_int = isinstance(action, (int, np.integer)) and not isinstance(action, (bool, np.bool_))
-    if not (is_int or scalar_array):
-        raise ValueError(f"action {action!r} of {agent} is not an int in its action space {space}")
-    if not space.contains(int(action)):
-        raise ValueError(f"action {action!r} of {agent} is outside its action space {space}")
-    return int(action)
+    """``action`` as an int, or ``ValueError`` naming the agent and its space (``checks.check_actions``)."""
+    return int(check_actions(action, 1, int(space.n), agent)[0])

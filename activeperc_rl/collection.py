@@ -33,6 +33,7 @@ from tensordict import TensorDict, TensorDictBase
 from torch import nn
 from torchrl.collectors import Collector
 
+from activeperc_env import EnvConfig
 from activeperc_env.core import usable_cpus
 from activeperc_rl.envs import make_env
 
@@ -62,13 +63,14 @@ def ignore_stop_signals() -> None:
 class WorkerEnv:
     """The env factory of one worker: its slice of the rooms, with torch seeded and threaded for the worker."""
 
-    env_kwargs: dict
+    config: EnvConfig
     num_rooms: int
     first_room: int
     env_seed: int
     torch_seed: int
     threads: int
     looker: nn.Module | None
+    look_views: bool = False
 
     def __call__(self):
         """Build the worker's env (TorchRL calls this in the worker)."""
@@ -84,7 +86,8 @@ class WorkerEnv:
             seed=self.env_seed,
             first_room=self.first_room,
             nthread=self.threads,
-            **self.env_kwargs,
+            look_views=self.look_views,
+            config=self.config,
         )
 
 
@@ -94,7 +97,7 @@ class Rollouts:
     Args:
         policy: the mover's policy module (as for ``Collector``).
         looker: the looker module run inside the env's cycle, or ``None`` (external mode).
-        env_kwargs: the :class:`~activeperc_env.EnvConfig` fields, as a dict.
+        config: the room.
         num_envs: rooms in the whole environment.
         rollout_length: cycles per room in one rollout.
         env_seed: base seed of the rooms' layout streams (as ``make_env(seed=...)``).
@@ -104,13 +107,14 @@ class Rollouts:
         ray_address: the Ray cluster to join (``"local"``: a Ray instance of its own on this machine).
         device: where the rollouts are returned (and, with ``workers == 0``, where the env runs).
         name: what error messages call these rollouts (``"E2's collector"``).
+        look_views: record what each look would have shown (``make_env``'s ``look_views``).
     """
 
     def __init__(
         self,
         policy: nn.Module,
         looker: nn.Module | None,
-        env_kwargs: dict,
+        config: EnvConfig,
         num_envs: int,
         rollout_length: int,
         *,
@@ -121,6 +125,7 @@ class Rollouts:
         ray_address: str = "local",
         device: torch.device | str = "cpu",
         name: str = "collector",
+        look_views: bool = False,
     ):
         if backend not in BACKENDS:
             raise ValueError(f"backend={backend!r} is invalid: expected one of {BACKENDS}")
@@ -133,7 +138,9 @@ class Rollouts:
         self.device, self.workers, self.backend, self.name = torch.device(device), workers, backend, name
         self._policy, self._looker = policy, looker
         if workers == 0:
-            env = make_env(num_envs, device=self.device, looker=looker, seed=env_seed, **env_kwargs)
+            env = make_env(
+                num_envs, device=self.device, looker=looker, seed=env_seed, look_views=look_views, config=config
+            )
             try:
                 self.collector = Collector(
                     env,
@@ -149,7 +156,7 @@ class Rollouts:
         else:
             threads = max(1, usable_cpus() // workers)
             envs = [
-                WorkerEnv(env_kwargs, n, first, env_seed, torch_seed + k, threads, looker)
+                WorkerEnv(config, n, first, env_seed, torch_seed + k, threads, looker, look_views)
                 for k, (first, n) in enumerate(split_rooms(num_envs, workers))
             ]
             frames = [env.num_rooms * rollout_length for env in envs]

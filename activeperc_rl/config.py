@@ -21,8 +21,9 @@ from pathlib import Path
 import yaml
 
 from activeperc_env import EnvConfig
+from activeperc_env.checks import is_seed
 from activeperc_env.config import is_int, is_number, normalize_numbers, saved_room, with_field_docs
-from activeperc_env.core import MAX_ENVS, MAX_SEED
+from activeperc_env.core import MAX_ENVS
 from activeperc_rl.atomic import atomic_path
 
 DEVICES = ("auto", "cpu", "cuda")
@@ -175,7 +176,7 @@ class TrainConfig:
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
             "num_envs": (_int_in(self.num_envs, 1, MAX_ENVS), f"an int in 1 .. {MAX_ENVS}"),
             "rollout_length": (_int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
-            "seed": (is_int(self.seed) and 0 <= self.seed <= MAX_SEED, "an int in [0, 2**63 - 1]"),
+            "seed": (is_seed(self.seed), "an int in [0, 2**63 - 1]"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
             "torch_threads": (_int_in(self.torch_threads, 0, 4096), "an int in 0 .. 4096"),
             "learner_threads": (_int_in(self.learner_threads, 0, 4096), "an int in 0 .. 4096"),
@@ -322,20 +323,6 @@ def _methods() -> tuple[str, ...]:
 def _int_in(value, low: int, high: int) -> bool:
     """Whether ``value`` is an int in ``low .. high`` (upper bounds keep absurd sizes from failing deep in torch)."""
     return is_int(value) and low <= value <= high
-
-
-def resolve_device(name: str):
-    """The ``torch.device`` a config's ``device`` names: ``"auto"`` is cuda when torch sees a GPU, else cpu;
-    ``"cuda"`` without a GPU, or a name not in :data:`DEVICES`, raises ``ValueError``."""
-    import torch
-
-    if name not in DEVICES:
-        raise ValueError(f"device={name!r} is invalid: expected one of {DEVICES}")
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device='cuda' was asked for but torch sees no CUDA device; use --device cpu or auto")
-    return torch.device(name)
 
 
 def save_yaml(config: TrainConfig, path: str | Path) -> None:

@@ -97,8 +97,8 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
+from activeperc_env.checks import check_actions, check_seed
 from activeperc_env.config import is_int
-from activeperc_env.core import check_actions
 
 MOVER, LOOKER = "mover", "looker"
 
@@ -115,6 +115,7 @@ def make_env(
     first_room: int = 0,
     nthread: int = 0,
     look_views: bool = False,
+    config: EnvConfig | None = None,
     **env_config,
 ):
     """Build the batched TorchRL env over one ``Simulator(num_envs)``.
@@ -130,10 +131,15 @@ def make_env(
             envs (worker processes): room ``i`` here gets the layouts of room ``first_room + i`` there.
         nthread: physics threads (0: every core this process may use).
         look_views: in looker mode, record what each look would have shown (see :class:`ActivePerceptionEnv`).
-        **env_config: any :class:`~activeperc_env.EnvConfig` field.
+        config: the room, as an :class:`~activeperc_env.EnvConfig`; or else
+        **env_config: any :class:`~activeperc_env.EnvConfig` field (the others at their defaults).
     """
+    if config is not None and env_config:
+        raise ValueError(f"give the room as config or as EnvConfig fields, not both (got config and {env_config})")
+    if config is not None and not isinstance(config, EnvConfig):
+        raise TypeError(f"config={config!r} is invalid: expected an EnvConfig")
     env = ActivePerceptionEnv(
-        EnvConfig.from_kwargs(**env_config),
+        config if config is not None else EnvConfig.from_kwargs(**env_config),
         num_envs=num_envs,
         device=device,
         looker=looker,
@@ -345,7 +351,7 @@ class ActivePerceptionEnv(EnvBase):
         moves = _to_numpy(tensordict.get((MOVER, "action")), n, MOVER)[ids]
         if self._looker is None:  # checked before the move: a bad look leaves the rooms as they were
             looks = _to_numpy(tensordict.get((LOOKER, "action")), n, LOOKER)[ids]
-            looks = check_actions(looks, ids, LOOKER_ACTIONS, LOOKER)
+            looks = check_actions(looks, len(ids), len(LOOKER_ACTIONS), LOOKER, LOOKER_ACTIONS)
         result = self.sim.move(moves, ids)
         out = TensorDict(batch_size=self.batch_size, device=self.device)
         if self._looker is None:
@@ -376,8 +382,8 @@ class ActivePerceptionEnv(EnvBase):
 
     def _set_seed(self, seed: int | None) -> None:
         """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(first_room + i,))``."""
-        if seed is not None and not (is_int(seed) and seed >= 0):
-            raise ValueError(f"seed={seed!r} is invalid: expected None or an int >= 0")
+        if seed is not None:
+            seed = check_seed(seed)
         self._seed_rngs = [
             np.random.default_rng(
                 None if seed is None else np.random.SeedSequence(seed, spawn_key=(self.first_room + i,))
@@ -455,11 +461,13 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
 
 
 def torch_device(device) -> torch.device | None:
-    """``device`` (a name such as ``"cpu"`` or ``"cuda:0"``, or a ``torch.device``) as a ``torch.device``, ``None``
-    (TorchRL's env without a device) as it is; ``ValueError`` naming it when torch knows no such device or it is a GPU
-    that torch does not see."""
+    """``device`` (a name such as ``"cpu"`` or ``"cuda:0"``, ``"auto"``: cuda when torch sees a GPU, or a
+    ``torch.device``) as a ``torch.device``, ``None`` (TorchRL's env without a device) as it is; ``ValueError``
+    naming it when torch knows no such device or it is a GPU that torch does not see."""
     if device is None:
         return None
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     try:
         resolved = torch.device(device)
     except (RuntimeError, TypeError) as error:

@@ -8,7 +8,6 @@ episodes are not over-counted, and the same seed gives the same episodes.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -19,13 +18,13 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp
 from tqdm import tqdm
 
 from activeperc_env.arguments import ArgumentParser, whole_number
+from activeperc_env.checks import check_seed
 from activeperc_env.config import is_int
-from activeperc_env.core import MAX_SEED
 from activeperc_env.render import side_by_side
 from activeperc_rl import portable
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
-from activeperc_rl.config import DEVICES, TrainConfig, resolve_device
+from activeperc_rl.config import DEVICES, TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
 from activeperc_rl.signals import stop_raises_interrupt
@@ -69,8 +68,7 @@ def evaluate(
             raise TypeError(f"{name}={module!r} is invalid: expected a module called on the env's tensordict")
     if not is_int(episodes) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} is invalid: expected an int >= 1")
-    if not is_int(seed) or not 0 <= seed <= MAX_SEED:
-        raise ValueError(f"seed={seed!r} is invalid: expected an int in [0, 2**63 - 1]")
+    check_seed(seed)
     device = torch_device(device)
     if video is not None:
         if Path(video).suffix.lower() not in VIDEO_SUFFIXES:
@@ -82,7 +80,7 @@ def evaluate(
     quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
     returns, successes, lengths = ([[] for _ in range(rooms)] for _ in range(3))
     frames = []
-    env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", **dataclasses.asdict(config.env))
+    env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", config=config.env)
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
     try:
         with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
@@ -185,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
-            device = resolve_device(args.device)
+            device = torch_device(args.device)
             config, mover_policy, looker = load_policy(args.run, device)
             if config.portable and argv is None:
                 portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too

@@ -132,17 +132,24 @@ class Method:
         return actor, critic, loss
 
     def _collector(
-        self, policy, looker=None, seed_offset: int = 0, name: str = "collector", **env_overrides
+        self,
+        policy,
+        looker=None,
+        seed_offset: int = 0,
+        name: str = "collector",
+        room: dict | None = None,
+        look_views: bool = False,
     ) -> Rollouts:
         """Rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), collected in this process
-        or by ``collect_workers`` workers (``name``: what their error messages call them)."""
+        or by ``collect_workers`` workers (``name``: what their error messages call them), in the configured room
+        with the options in ``room`` changed."""
         cfg = self.config
         # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
         entropy = [self.env_seed, len(self.collectors)]
         collector = Rollouts(
             policy,
             looker,
-            dataclasses.asdict(cfg.env) | env_overrides,
+            dataclasses.replace(cfg.env, **(room or {})),
             cfg.num_envs,
             cfg.rollout_length,
             env_seed=self.env_seed + seed_offset,
@@ -152,6 +159,7 @@ class Method:
             ray_address=cfg.ray_address,
             device=self.device,
             name=name,
+            look_views=look_views,
         )
         self.collectors.append(collector)
         return collector
@@ -387,7 +395,7 @@ class Curriculum(Joint):
         stopped in the iteration that crossed the switch point switches at its next iteration, as it would have)."""
         self.phase = self._phase() if self._restored_phase is None else self._restored_phase
         self._restored_phase = None
-        self.collector = self._collector(self.joint_policy, **self.phase)
+        self.collector = self._collector(self.joint_policy, room=self.phase)
 
     def iterate(self) -> Iteration:
         """One joint iteration; switches to the obstacle room once the pre-training frames are spent."""

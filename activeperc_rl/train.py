@@ -44,7 +44,8 @@ from activeperc_rl.checkpoint import (
     save_checkpoint,
 )
 from activeperc_rl.collection import WorkerError
-from activeperc_rl.config import TrainConfig, resolve_device, save_yaml
+from activeperc_rl.config import TrainConfig, save_yaml
+from activeperc_rl.envs import torch_device
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.methods import Iteration, make_method, success_rate
 from activeperc_rl.models import FixedLooker
@@ -77,7 +78,7 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         portable.require_pinned()
     if resume and not (out / CHECKPOINT).is_file():  # checked before claiming, which would create the directory
         raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
-    device = resolve_device(config.device)
+    device = torch_device(config.device)
     with claim_run_dir(out):
         if resume:
             state = load_checkpoint(out / CHECKPOINT, config)

@@ -79,7 +79,8 @@ def bench_method(
     """
     import torch
 
-    from activeperc_rl.config import TrainConfig, resolve_device
+    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.envs import torch_device
     from activeperc_rl.methods import make_method
 
     changes = {"method": name, "device": device, "collect_workers": collect_workers, "collector": collector}
@@ -87,7 +88,7 @@ def bench_method(
         changes["num_envs"] = num_envs
     config = TrainConfig(**changes)
     torch.manual_seed(config.seed)
-    method = make_method(config, resolve_device(device))
+    method = make_method(config, torch_device(device))
     collect_s = [0.0]
     next_rollout = method._next  # bound method of the library, wrapped on this instance only
 
@@ -169,7 +170,8 @@ def combine(results: list[dict]) -> dict:
 
 def main() -> None:
     """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
-    from activeperc_rl.config import COLLECTORS, DEVICES, TrainConfig, resolve_device
+    from activeperc_rl.config import COLLECTORS, DEVICES, TrainConfig
+    from activeperc_rl.envs import torch_device
     from activeperc_rl.methods import METHODS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -321,7 +323,7 @@ def main() -> None:
             verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
         print(f"goal  {goal}: {verdict}")
 
-    if "gpu" in machine and "meta" in ours and resolve_device(args.device).type == "cuda":
+    if "gpu" in machine and "meta" in ours and torch_device(args.device).type == "cuda":
         met = ours["meta"]["frames_per_s"] >= GPU_GOAL
         verdict = "MET" if met else "NOT MET"
         print(f"goal  issue 4: meta >= {GPU_GOAL:,} frames/s on an H100: {verdict} on {machine['gpu']}")

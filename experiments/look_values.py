@@ -17,7 +17,6 @@ is out of view or off centre, hold where it is centred.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 
@@ -96,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         split="eval",
         look_views=True,
-        **dataclasses.asdict(config.env),
+        config=config.env,
     )
     torch.manual_seed(args.seed)
     try:

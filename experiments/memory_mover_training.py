@@ -15,7 +15,6 @@ line: the held-out success with the same looker. A probe, not a method: one proc
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 import time
@@ -65,7 +64,7 @@ def memory_actor_critic(config: TrainConfig, memory_size: int):
 def memory_env(config: TrainConfig, looker_name: str, gru: GRUModule, rooms: int, split: str):
     """The batched env with the scripted looker inside each cycle, the init flags and the GRU's state."""
     looker = ScriptedLooker(looker_name, config.env, rooms, config.seed)
-    env = make_env(rooms, looker=looker, seed=config.seed, split=split, **dataclasses.asdict(config.env))
+    env = make_env(rooms, looker=looker, seed=config.seed, split=split, config=config.env)
     return TransformedEnv(env, Compose(InitTracker(), gru.make_tensordict_primer()))
 
 

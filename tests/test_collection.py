@@ -1,6 +1,5 @@
 """Collection through TorchRL's collectors (``collect_workers``): same layouts, current weights, clean stops."""
 
-import dataclasses
 import multiprocessing
 import os
 import signal
@@ -64,7 +63,7 @@ class FailingLooker(nn.Module):
 def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights(backend, rooms):
     actor = mover_that_always_picks(2)
     policy = TensorDictSequential(actor, FixedLooker())
-    config = dataclasses.asdict(SMALL)
+    config = SMALL
     collector = Rollouts(
         policy, None, config, rooms, rollout_length=4, workers=2, backend=backend, env_seed=7, torch_seed=0
     )
@@ -77,7 +76,7 @@ def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_we
     assert first.batch_size == second.batch_size == torch.Size([rooms, 4])
     assert (first["mover", "action"] == 2).all() and (second["mover", "action"] == 0).all()
     # room i of the split env starts in the layout of room i of one env of all the rooms
-    reference = make_env(rooms, seed=7, **dataclasses.asdict(SMALL)).reset()
+    reference = make_env(rooms, seed=7, config=SMALL).reset()
     assert torch.equal(first["mover", "observation", "image"][:, 0], reference["mover", "observation", "image"])
     # trajectory ids stay unique across the workers' rooms
     ids = first["collector", "traj_ids"][:, 0]
@@ -88,7 +87,7 @@ def test_each_worker_samples_from_a_stream_of_its_own():
     """Workers with as many rooms each would draw the same actions from one seed: less exploration than k = 0."""
     from activeperc_rl.models import RandomPolicy
 
-    config = dataclasses.asdict(SMALL)
+    config = SMALL
     collector = Rollouts(RandomPolicy(("mover", "looker")), None, config, 4, 8, workers=2, env_seed=7, torch_seed=0)
     try:
         actions = next(collector)["mover", "action"]
@@ -103,7 +102,7 @@ def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
         WorkerError, match="collector: a worker failed to start: ArithmeticError: this looker fails with two rooms"
     ):
         Rollouts(
-            mover_that_always_picks(2), FailingLooker(), dataclasses.asdict(SMALL), 3, 4, workers=2, env_seed=0,
+            mover_that_always_picks(2), FailingLooker(), SMALL, 3, 4, workers=2, env_seed=0,
             torch_seed=0,
         )  # fmt: skip
     assert multiprocessing.active_children() == []
@@ -111,7 +110,7 @@ def test_a_failing_worker_is_reported_with_its_error_and_no_worker_is_left():
 
 def test_a_killed_worker_is_named_with_the_signal_that_killed_it():
     policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
-    collector = Rollouts(policy, None, dataclasses.asdict(SMALL), 2, 4, workers=2, env_seed=0, torch_seed=0)
+    collector = Rollouts(policy, None, SMALL, 2, 4, workers=2, env_seed=0, torch_seed=0)
     try:
         next(collector)
         collector.collector.procs[1].kill()
@@ -210,9 +209,7 @@ def test_a_dead_worker_of_meta_names_its_environment():
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method
 
-    config = TrainConfig(
-        num_envs=2, rollout_length=4, collect_workers=1, channels=(8,), hidden_size=16, env=dataclasses.asdict(SMALL)
-    )
+    config = TrainConfig(num_envs=2, rollout_length=4, collect_workers=1, channels=(8,), hidden_size=16, env=SMALL)
     method = make_method(config, torch.device("cpu"))
     try:
         method.e2.collector.procs[0].kill()
@@ -239,14 +236,14 @@ def test_a_worker_that_cannot_be_started_leaves_none_running(monkeypatch):
     monkeypatch.setattr(multiprocessing.context.SpawnProcess, "start", start_once)
     policy = TensorDictSequential(mover_that_always_picks(2), FixedLooker())
     with pytest.raises(OSError, match="Resource temporarily unavailable"):
-        Rollouts(policy, None, dataclasses.asdict(SMALL), 2, 4, workers=2, env_seed=0, torch_seed=0)
+        Rollouts(policy, None, SMALL, 2, 4, workers=2, env_seed=0, torch_seed=0)
     assert len(starts) == 2
     assert multiprocessing.active_children() == []
 
 
 def test_ray_needs_rooms_that_split_evenly():
     with pytest.raises(ValueError, match="num_envs=5 does not split evenly over 2 Ray workers"):
-        Rollouts(mover_that_always_picks(2), None, dataclasses.asdict(SMALL), 5, 4, workers=2, backend="ray",
+        Rollouts(mover_that_always_picks(2), None, SMALL, 5, 4, workers=2, backend="ray",
                  env_seed=0, torch_seed=0)  # fmt: skip
 
 
@@ -256,5 +253,5 @@ def test_ray_without_ray_installed_says_how_to_install_it(monkeypatch):
     find_spec = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else find_spec(name, *a))
     with pytest.raises(ValueError, match=r"collector='ray' needs Ray, which is not installed: pip install"):
-        Rollouts(mover_that_always_picks(2), None, dataclasses.asdict(SMALL), 4, 4, workers=2, backend="ray",
+        Rollouts(mover_that_always_picks(2), None, SMALL, 4, 4, workers=2, backend="ray",
                  env_seed=0, torch_seed=0)  # fmt: skip

@@ -120,16 +120,16 @@ def test_reset_mask_and_disabled_autoreset():
 def test_bad_input_is_named():
     vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2)
     vec.reset(seed=0)
-    with pytest.raises(ValueError, match=r"action 9 of room 1 is outside the action space Discrete\(9\)"):
+    with pytest.raises(ValueError, match=r"joint agent action 9 of room 1 is outside its action space Discrete\(9\)"):
         vec.step(np.array([0, 9]))
-    with pytest.raises(ValueError, match=r"actions \[1\] are invalid: expected 2 ints"):
+    with pytest.raises(ValueError, match=r"joint agent action\(s\) \[1\] invalid: expected 2 ints"):
         vec.step([1])
-    with pytest.raises(ValueError, match=r"actions .*0\.5.* are invalid"):
+    with pytest.raises(ValueError, match=r"action\(s\) .*0\.5.* invalid"):
         vec.step(np.array([0.5, 1.0]))
     with pytest.raises(ValueError, match=r"seed=\[1\] is invalid"):
         vec.reset(seed=[1])
     first = vec.unwrapped.sim.state()
-    with pytest.raises(ValueError, match=r"seed -1 of room 1 is invalid"):
+    with pytest.raises(ValueError, match=r"seed\[1\]=-1 is invalid"):
         vec.reset(seed=[1, -1])
     np.testing.assert_array_equal(vec.unwrapped.sim.state(), first)  # no room was reseeded
     with pytest.raises(ValueError, match=r"seed=9223372036854775807 is invalid: room i gets seed \+ i, so with 2"):

@@ -91,7 +91,7 @@ def test_the_pettingzoo_and_gymnasium_infos_report_the_cores_outcomes(ended):
 
 
 def test_the_torchrl_env_reports_the_cores_outcomes(ended):
-    env = make_env(4, seed=0, nthread=1, **vars(ROOM))
+    env = make_env(4, seed=0, nthread=1, config=ROOM)
     generator = torch.Generator().manual_seed(0)
 
     def policy(td):

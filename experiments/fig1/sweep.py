@@ -57,7 +57,8 @@ from pathlib import Path
 
 import numpy as np
 
-from activeperc_env.core import MAX_SEED, usable_cpus
+from activeperc_env.checks import is_seed
+from activeperc_env.core import usable_cpus
 from activeperc_rl import portable
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS, load_checkpoint
@@ -482,7 +483,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.frames < 1 or args.eval_episodes < 1:
             raise ValueError(f"--frames={args.frames} and --eval-episodes={args.eval_episodes} must be >= 1")
-        if not all(0 <= seed <= MAX_SEED for seed in args.seeds):
+        if not all(is_seed(seed) for seed in args.seeds):
             raise ValueError(f"--seeds {args.seeds}: seeds must be in [0, 2**63 - 1]")
         twice = sorted({seed for seed in args.seeds if args.seeds.count(seed) > 1})
         if twice:
