@@ -42,16 +42,9 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
-import time
-from collections.abc import Callable
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # peer.py sits next to this file
-
-import harness  # noqa: E402 (needs the path above)
-import peer  # noqa: E402
-from harness import add_timing_flags, machine_info, timed_rate  # noqa: E402
+import harness
+import peer
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
@@ -74,7 +67,8 @@ def gl_renderer_name(sim) -> str:
 
 def random_aec(seed: int, version: int = 1):
     """The PettingZoo AEC env of room ``version`` reset from ``seed``, and one random-action cycle of it (``cycle() ->
-    1``) that resets the env when an episode ends."""
+    1``): the mover's ``last()`` and step, then the looker's, as PettingZoo's loop makes them (each step gives one
+    80x60 view; the mover's is drawn only when the look turned the camera); the env is reset when an episode ends."""
     import activeperc_env
 
     env = activeperc_env.env(version=version)
@@ -98,102 +92,43 @@ def bench_aec(seconds: float, warmup: float, seed: int, version: int = 1) -> tup
     env, cycle = random_aec(seed, version)
     gl_renderer = gl_renderer_name(env.unwrapped.sim)
     try:
-        return timed_rate(cycle, seconds, warmup), gl_renderer
+        return harness.timed_rate(cycle, seconds, warmup), gl_renderer
     finally:
         env.close()
 
 
-AEC_PARTS = {
-    "move": "physics (Simulator.move)",
-    "render": "renders (Simulator.render)",
-    "look": "look (Simulator.look)",
-    "reset": "resets (Simulator.reset)",
-}
-
-
 def aec_breakdown(seconds: float, warmup: float, seed: int, version: int = 1) -> dict[str, float]:
-    """Where an AEC cycle's time goes: milliseconds per cycle in each of :data:`AEC_PARTS`, in ``"rest"`` (PettingZoo's
-    API, action checks, observation dicts, drawing the random actions) and in all, ``"total"``.
+    """Where an AEC cycle's time goes: milliseconds per cycle in each method of :data:`harness.SIMULATOR_PARTS`, in
+    ``"rest"`` (PettingZoo's API, action checks, observation dicts, drawing the random actions) and in all,
+    ``"total"``.
 
     The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
     the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
     """
     env, cycle = random_aec(seed, version)
-    sim = env.unwrapped.sim
-    spent = dict.fromkeys(AEC_PARTS, 0.0)
-
-    def timer(part: str, method):
-        def timed(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return method(*args, **kwargs)
-            finally:
-                spent[part] += time.perf_counter() - start
-
-        return timed
-
-    for part in AEC_PARTS:
-        setattr(sim, part, timer(part, getattr(sim, part)))
+    stopwatch = harness.Stopwatch()
     try:
-        timed_rate(cycle, warmup, 0.0)  # the warm-up, whose time is then forgotten
-        spent.update(dict.fromkeys(spent, 0.0))
-        start = time.perf_counter()
-        rate = timed_rate(cycle, seconds, 0.0)
-        elapsed = time.perf_counter() - start
+        with stopwatch.watching(env.unwrapped.sim, harness.SIMULATOR_PARTS):
+            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
     finally:
         env.close()
-    total = 1e3 / rate  # ms per cycle
-    result = {part: total * t / elapsed for part, t in spent.items()}  # each part's share of a cycle
-    result["total"] = total
-    result["rest"] = result["total"] - sum(result[part] for part in AEC_PARTS)
+    result = {part: 1e3 * spent for part, spent in per_cycle.items()}
+    result["total"] = 1e3 / rate
+    result["rest"] = result["total"] - sum(per_cycle.values()) * 1e3
     return result
 
 
-def untimed(part: str, call: Callable[[], object]) -> None:
-    """The ``timed`` hook of :func:`core_cycle` that only makes the call."""
-    call()
-
-
-def core_cycle(sim, rng, timed: Callable[[str, Callable[[], object]], None] = untimed) -> None:
-    """One random-action cycle of every room of ``sim``: move, render, look, render, then reset and render the
-    finished rooms. Each step goes through ``timed(part, call)``, ``part`` being 'physics', 'render', 'look'
-    or 'reset'."""
-    import numpy as np
-
-    num_envs = sim.num_envs
-    timed("physics", lambda: sim.move(rng.integers(0, 3, num_envs)))
-    timed("render", sim.render)
-    timed("look", lambda: sim.look(rng.integers(0, 3, num_envs)))
-    timed("render", sim.render)
-    done = np.flatnonzero(sim.done)
-    if done.size:
-        timed("reset", lambda: sim.reset(done))
-        timed("render", lambda: sim.render(done))
-
-
-def random_core(num_envs: int, seed: int, version: int = 1):
-    """A ``Simulator(num_envs)`` of room ``version`` reset from ``seed`` with its first views rendered, and the rng of
-    its actions."""
-    import numpy as np
-
-    import activeperc_env
-
-    sim = activeperc_env.Simulator(activeperc_env.EnvConfig(version=version), num_envs=num_envs)
-    sim.reset(seeds=seed + np.arange(num_envs))
-    sim.render()
-    return sim, np.random.default_rng(seed)
-
-
 def bench_core(num_envs: int, seconds: float, warmup: float, seed: int, version: int = 1) -> float:
-    """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
-    sim, rng = random_core(num_envs, seed, version)
+    """Cycles/s of ``Simulator(num_envs)`` with random actions (:func:`harness.core_cycle`: up to 2 renders a cycle),
+    summed over its rooms."""
+    sim, rng = harness.random_core(num_envs, seed, version)
 
     def cycle() -> int:
-        core_cycle(sim, rng)
+        harness.core_cycle(sim, rng)
         return num_envs
 
     try:
-        return timed_rate(cycle, seconds, warmup)
+        return harness.timed_rate(cycle, seconds, warmup)
     finally:
         sim.close()
 
@@ -217,7 +152,7 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int, versio
         return stepped
 
     try:
-        return timed_rate(step, seconds, warmup)
+        return harness.timed_rate(step, seconds, warmup)
     finally:
         env.close()
 
@@ -257,30 +192,58 @@ def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None, ve
     return per_round, medians, goals
 
 
-def main() -> None:
-    """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command-line flags, every value checked."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
+    harness.add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
     parser.add_argument(
         "--versions", type=int, nargs="+", choices=(0, 1), default=[1], help="room versions, each in every round (1)"
     )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    args = parser.parse_args()
+    return parser.parse_args(argv)
 
-    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
 
-    machine = machine_info()
+def print_header(args: argparse.Namespace, machine: dict) -> None:
+    """The report's first lines: what was timed, on what."""
     print("activeperc env speed vs MiniWorld")
-    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
-    print(f"machine: {cpus}, {machine['processor']}")
+    print(harness.machine_line(machine))
     print(f"         {machine['platform']}, Python {machine['python']}")
     print(
         f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed};"
-        f" {args.rounds} round(s) of ours (room version {', '.join(map(str, args.versions))} in each),"
-        " MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s) of ours (room version {', '.join(map(str, args.versions))} in each)"
+        + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
     )
     print()
 
+
+def print_breakdown(version: int, parts: dict[str, float]) -> None:
+    """The report's line on where an AEC cycle of room ``version`` goes (:func:`aec_breakdown`'s medians)."""
+    named = " + ".join(f"{label} {parts[part]:.2f}" for part, label in harness.SIMULATOR_PARTS.items())
+    rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {parts['rest']:.2f}"
+    print(f"where a v{version} AEC cycle goes (timed apart, medians): {parts['total']:.2f} ms = {named} + {rest}")
+
+
+def print_ratios(per_round: dict, goals: dict, versions: list[int], cpus: int) -> None:
+    """The report's ratios ours/MiniWorld, every round's, and the goals judged on their medians."""
+    if not per_round:
+        print("ratios and goals: unknown, MiniWorld was not measured")
+        return
+    print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
+    for key, values in per_round.items():
+        print(f"ratio {key:<19}{harness.spread(values, 2, 'x')}")
+    for version in versions:
+        for key, multiple, name in GOALS:
+            met = goals[f"v{version} {name}"]
+            print(f"goal  v{version} {name}: {harness.verdict(met, per_round[f'{key}_v{version}'], multiple, cpus)}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Parse the flags, time ours and MiniWorld in alternation, print the report; return the JSON report."""
+    args = parse_args(argv)
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+
+    machine = harness.machine_info()
+    print_header(args, machine)
     breakdowns = {version: [] for version in args.versions}
 
     def measure(i: int) -> dict[str, float]:
@@ -292,65 +255,53 @@ def main() -> None:
         print(f"round {i + 1}: " + ", ".join(f"{key} {rate:.1f}" for key, rate in ours.items()), flush=True)
         return ours
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads)
+    measured = peer.in_rounds(
+        args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads, skip=args.no_peer
+    )
     rounds, peer_rates = measured.ours, measured.peer
     print()
 
     medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
-    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
-    print(f"figures: {how}; GL: {machine['gl_renderer']}, LP_NUM_THREADS: {machine['lp_num_threads']}")
+    gl = f"GL: {machine['gl_renderer']}, LP_NUM_THREADS: {machine['lp_num_threads']}"
+    print(f"figures: {harness.of_rounds(args.rounds)}; {gl}")
     for version in args.versions:
         for key, (label, unit) in FIGURES.items():
             print(f"ours  v{version} {label:<34}{medians[f'{key}_v{version}']:9.1f} {unit}")
     print(peer.describe(measured))
     print()
 
-    aec_parts = {}
-    for version in args.versions:
-        aec_parts[version] = {part: statistics.median(b[part] for b in breakdowns[version]) for part in AEC_PARTS}
-        aec_parts[version] |= {key: statistics.median(b[key] for b in breakdowns[version]) for key in ("rest", "total")}
-        parts = " + ".join(f"{label} {aec_parts[version][part]:.2f}" for part, label in AEC_PARTS.items())
-        rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts[version]['rest']:.2f}"
-        print(
-            f"where a v{version} AEC cycle goes (timed apart, medians): {aec_parts[version]['total']:.2f} ms = "
-            f"{parts} + {rest}"
-        )
+    aec_parts = {
+        version: {part: statistics.median(b[part] for b in breakdowns[version]) for part in breakdowns[version][0]}
+        for version in args.versions
+    }
+    for version, parts in aec_parts.items():
+        print_breakdown(version, parts)
     if peer_rates:
         print(f"a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms")
     print()
 
     per_round, ratios, goals = summarise(rounds, peer_rates, args.versions)
-    if ratios:
-        print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
-        for key, values in per_round.items():
-            print(f"ratio {key:<19}{harness.spread(values, 2, 'x')}")
-        for version in args.versions:
-            for key, multiple, name in GOALS:
-                verdict = "MET" if goals[f"v{version} {name}"] else "NOT MET"
-                met = harness.rounds_met(per_round[f"{key}_v{version}"], multiple)
-                print(f"goal  v{version} {name}: {verdict} (median; {met})")
-    else:
-        print("ratios and goals: unknown, MiniWorld could not be measured")
-
+    print_ratios(per_round, goals, args.versions, machine["usable_cpus"])
+    report = {
+        "machine": machine,
+        "seconds": args.seconds,
+        "warmup": args.warmup,
+        "seed": args.seed,
+        "versions": args.versions,
+        "rounds": rounds,
+        "ours_cycles_per_s": medians,
+        "aec_ms_per_cycle": aec_parts,
+        "aec_ms_per_cycle_rounds": breakdowns,
+        "miniworld": measured.info,
+        "miniworld_steps_per_s": peer_rates,
+        "miniworld_error": measured.why,
+        "ratio_rounds": per_round,
+        "ratios": ratios,
+        "goals_met": goals,
+    }
     if args.json:
-        report = {
-            "machine": machine,
-            "seconds": args.seconds,
-            "warmup": args.warmup,
-            "seed": args.seed,
-            "versions": args.versions,
-            "rounds": rounds,
-            "ours_cycles_per_s": medians,
-            "aec_ms_per_cycle": aec_parts,
-            "aec_ms_per_cycle_rounds": breakdowns,
-            "miniworld": measured.info,
-            "miniworld_steps_per_s": peer_rates,
-            "miniworld_error": measured.why,
-            "ratio_rounds": per_round,
-            "ratios": ratios,
-            "goals_met": goals,
-        }
         print(json.dumps(report))
+    return report
 
 
 if __name__ == "__main__":
