@@ -24,6 +24,13 @@ round's figure is divided by the mean of the two MiniWorld figures around it, be
 over minutes. The report gives each method's median frames/s over the rounds and the median of its per-round
 ratios, with every round's ratio, and judges the goals on the median ratio.
 
+With ``--parts`` (in-process collection only), the time inside the collectors is also split into the time spent
+in ``Simulator.move`` (the physics of one control period, reward and episode logic), ``Simulator.look``,
+``Simulator.reset``, ``Simulator.render`` and ``Head.forward`` (every network's forward pass: the mover's policy
+and the looker in the loop), each printed per collected env step (one cycle of every room), with the rest of the
+collection time (TorchRL and tensordict bookkeeping, action sampling, auto-reset) and learning's time per
+iteration. The classes are patched only while a collection runs, so learning's forward passes are not counted.
+
 A training frame is one cycle of a room (the mover's move and, in looker mode, the look, each with its render),
 while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
 environment loop, as the issues state it.
@@ -34,29 +41,50 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
     python benchmarks/train_speed.py --seconds 5 --rounds 1 --json
     python benchmarks/train_speed.py --methods meta --collector inprocess process ray --workers 2
+    python benchmarks/train_speed.py --methods meta --parts --seconds 10 --rounds 1 --no-peer
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
+import contextlib
 import gc
+import importlib
 import json
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
-
-import harness  # noqa: E402 (needs the path above)
-import peer  # noqa: E402
+import harness
+import peer
 
 GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
     ("issue 4: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
 )
 GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
+COLLECTION_PARTS = (  # (module, class, methods) timed within the collections with --parts
+    ("activeperc_env.core", "Simulator", tuple(harness.SIMULATOR_PARTS)),
+    ("activeperc_rl.models", "Head", ("forward",)),
+)
+PART_LABELS = harness.SIMULATOR_PARTS | {"forward": "network forward passes (Head.forward)"}
+WIDTH = 24  # of a run's label in the report
+
+
+def time_collections(method, stopwatch: harness.Stopwatch, parts: bool) -> None:
+    """Time ``method``'s collections (its ``_next``, wrapped on this instance only) as the part ``collect`` of
+    ``stopwatch`` and, with ``parts``, the methods of :data:`COLLECTION_PARTS` within them: their classes are patched
+    only while a collection runs, so learning's forward passes are not counted."""
+    next_rollout = stopwatch.timed("collect", method._next)
+    owners = [(getattr(importlib.import_module(module), name), methods) for module, name, methods in COLLECTION_PARTS]
+    owners = owners if parts else []
+
+    def collect(collector):
+        with contextlib.ExitStack() as watching:
+            for owner, methods in owners:
+                watching.enter_context(stopwatch.watching(owner, methods))
+            return next_rollout(collector)
+
+    method._next = collect
 
 
 def bench_method(
@@ -67,15 +95,19 @@ def bench_method(
     device: str = "cpu",
     collect_workers: int = 0,
     collector: str = "process",
+    parts: bool = False,
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
-    ``collect_workers`` and ``collector`` are :attr:`TrainConfig.collect_workers` (workers per environment; their
-    start is not timed) and :attr:`TrainConfig.collector` (``process`` or ``ray``).
+    The method is built as ``activeperc-train`` builds it: the default :class:`~activeperc_rl.config.TrainConfig` but
+    for the method, ``num_envs`` (``None``: the default), ``collect_workers`` (workers per environment; their start is
+    not timed) and ``collector`` (``process`` or ``ray``, for the workers).
 
-    The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
-    timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
-    ``curriculum``, ``obstacles`` (the obstacle count of the phase that was timed).
+    The result holds ``frames_per_s`` (frames, every room's cycles in every environment, over the timed wall time),
+    ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the timed wall time), ``collect_s`` (time
+    inside the collectors: the rooms, the policy's and the in-loop looker's forward passes), ``learn_s`` (the rest:
+    losses, backward passes, optimizer and soft updates), with ``parts`` ``parts_s`` (seconds in each method of
+    :data:`PART_LABELS` while collecting) and, for ``curriculum``, ``obstacles`` (the timed phase's obstacle count).
     """
     import torch
 
@@ -88,23 +120,13 @@ def bench_method(
     config = TrainConfig(**changes)
     torch.manual_seed(config.seed)
     method = make_method(config, resolve_device(device))
-    collect_s = [0.0]
-    next_rollout = method._next  # bound method of the library, wrapped on this instance only
-
-    @functools.wraps(next_rollout)
-    def timed_next(collector):
-        start = time.perf_counter()
-        try:
-            return next_rollout(collector)
-        finally:
-            collect_s[0] += time.perf_counter() - start
-
-    method._next = timed_next
+    stopwatch = harness.Stopwatch()
+    time_collections(method, stopwatch, parts)
     try:
         for _ in range(warmup_iters):
             method.iterate()
         frames, iterations, losses = 0, 0, {}
-        collect_s[0] = 0.0
+        stopwatch.restart()
         start = time.perf_counter()
         while True:
             iteration = method.iterate()
@@ -116,23 +138,23 @@ def bench_method(
                 break
     finally:
         method.close()
+    collect_s = stopwatch.spent["collect"]
     result = {
         "frames_per_s": frames / elapsed,
         "iterations": iterations,
         "frames": frames,
         "frames_per_iteration": frames / iterations,
         "seconds": elapsed,
-        "collect_s": collect_s[0],
-        "learn_s": elapsed - collect_s[0],
+        "collect_s": collect_s,
+        "learn_s": elapsed - collect_s,
         "num_envs": config.num_envs,
         "rollout_length": config.rollout_length,
     }
+    if parts:
+        result["parts_s"] = {part: stopwatch.spent.get(part, 0.0) for part in PART_LABELS}
     if "curriculum/obstacles" in losses:
         result["obstacles"] = int(losses["curriculum/obstacles"])
     return result
-
-
-WIDTH = 24  # of a run's label in the report
 
 
 def run_label(method: str, collector: str, workers: int) -> str:
@@ -154,8 +176,11 @@ def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
 
 
 def combine(results: list[dict]) -> dict:
-    """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time."""
+    """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time (and of
+    each part's time, with ``--parts``)."""
     total = {key: sum(r[key] for r in results) for key in ("iterations", "frames", "seconds", "collect_s", "learn_s")}
+    if "parts_s" in results[0]:
+        total["parts_s"] = {part: sum(r["parts_s"][part] for r in results) for part in results[0]["parts_s"]}
     return (
         results[-1]
         | total
@@ -167,9 +192,9 @@ def combine(results: list[dict]) -> dict:
     )
 
 
-def main() -> None:
-    """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
-    from activeperc_rl.config import COLLECTORS, DEVICES, METHODS, TrainConfig, resolve_device
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command-line flags, every value checked."""
+    from activeperc_rl.config import COLLECTORS, DEVICES, METHODS, TrainConfig
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -219,22 +244,24 @@ def main() -> None:
         help="untimed iterations before each timing (2)",
     )
     parser.add_argument(
-        "--rounds",
-        type=harness.at_least(int, "rounds", 1),
-        default=3,
-        help="rounds of the methods, MiniWorld timed around each (3)",
+        "--parts",
+        action="store_true",
+        help="also time the physics, renders, look, resets and network forward passes within each collection"
+        " (inprocess only)",
     )
-    parser.add_argument(
-        "--peer-lp-threads",
-        type=int,
-        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
-    )
+    harness.add_round_flags(parser, per="method")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    if args.parts and args.collector != ["inprocess"]:
+        parser.error("--parts times the rooms of this process: it needs --collector inprocess")
+    return args
 
+
+def describe_machine(args: argparse.Namespace) -> dict:
+    """:func:`harness.machine_info` with torch's version and threads (set from ``--threads``), the device, the GPU
+    and the allocator as ``activeperc-train`` sets it."""
     import torch
 
-    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
     from activeperc_rl.allocator import keep_freed_memory
 
     if args.threads:
@@ -244,9 +271,13 @@ def main() -> None:
     machine["keep_freed_memory"] = keep_freed_memory()  # as activeperc-train does
     if torch.cuda.is_available():
         machine["gpu"] = torch.cuda.get_device_name()
+    return machine
+
+
+def print_header(args: argparse.Namespace, machine: dict) -> None:
+    """The report's first lines: what was timed, on what."""
     print("activeperc training speed vs MiniWorld")
-    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
-    print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
+    print(harness.machine_line(machine))
     print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
     print(f"         malloc keeps freed memory (activeperc_rl.allocator): {machine['keep_freed_memory']}")
     if "gpu" in machine:
@@ -255,10 +286,58 @@ def main() -> None:
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
         f" networks on {args.device},"
         f" collectors {', '.join(args.collector)} ({args.workers} workers each but inprocess);"
-        f" {args.rounds} round(s), MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s)" + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
     )
     print()
 
+
+def print_run(label: str, result: dict) -> None:
+    """The report's line on one run's frames/s, iterations and the collection's share of them."""
+    collect = result["collect_s"] / result["seconds"]
+    detail = (
+        f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
+        f" (N={result['num_envs']}, T={result['rollout_length']}),"
+        f" collect {collect:.0%} / learn {1 - collect:.0%}"
+    )
+    if "obstacles" in result:
+        detail += f", phase with {result['obstacles']} obstacles"
+    print(f"train {label:<{WIDTH}}{result['frames_per_s']:9.1f} frames/s   {detail}")
+
+
+def print_parts(label: str, result: dict) -> None:
+    """The report's lines on where one run's collection time went (``--parts``): milliseconds per env step (one
+    cycle of every room) in each part, and learning's per iteration."""
+    steps, collect = result["frames"] / result["num_envs"], result["collect_s"]
+    print(f"parts {label}: collection {1e3 * collect / steps:.1f} ms per env step of {result['num_envs']} rooms")
+    rows = [(PART_LABELS[part], spent) for part, spent in result["parts_s"].items()]
+    rows.append(("the rest (TorchRL, tensordict, sampling)", collect - sum(result["parts_s"].values())))
+    for name, spent in rows:
+        print(f"  {name:<40}{1e3 * spent / steps:7.2f} ms per step  ({spent / collect:4.0%})")
+    learn = result["learn_s"]
+    print(f"  learning: {1e3 * learn / result['iterations']:.0f} ms per iteration ({learn / result['seconds']:.0%})")
+
+
+def print_ratios(per_round: dict, goals: dict, cpus: int) -> None:
+    """The report's ratios frames/s over MiniWorld's steps/s, every round's, and the goals judged on ``meta``'s."""
+    if per_round:
+        print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
+        for name, values in per_round.items():
+            print(f"ratio {name:<{WIDTH}}{harness.spread(values, 2, 'x')}")
+    else:
+        print("ratios: unknown, MiniWorld was not measured")
+    for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
+        print(f"goal  {goal}: {harness.verdict(met, per_round.get('meta'), multiple, cpus)}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Parse the flags, train every method for a while, measure MiniWorld, print the report; return the JSON
+    report."""
+    args = parse_args(argv)
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+    from activeperc_rl.config import resolve_device
+
+    machine = describe_machine(args)
+    print_header(args, machine)
     runs = [(name, collector) for name in args.methods for collector in args.collector]
 
     def measure(i: int) -> dict[str, dict]:
@@ -267,32 +346,26 @@ def main() -> None:
             label = run_label(name, collector, args.workers)
             workers, backend = (0, "process") if collector == "inprocess" else (args.workers, collector)
             results[label] = bench_method(
-                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend
+                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend, args.parts
             )
             print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()
         return results
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads)
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads, skip=args.no_peer)
     rounds, peer_rates = measured.ours, measured.peer
     ours = {label: combine([r[label] for r in rounds]) for label in rounds[0]}
     print()
 
-    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
-    print(f"figures: {how}")
-    for name, result in ours.items():
-        collect = result["collect_s"] / result["seconds"]
-        detail = (
-            f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
-            f" (N={result['num_envs']}, T={result['rollout_length']}),"
-            f" collect {collect:.0%} / learn {1 - collect:.0%}"
-        )
-        if "obstacles" in result:
-            detail += f", phase with {result['obstacles']} obstacles"
-        print(f"train {name:<{WIDTH}}{result['frames_per_s']:9.1f} frames/s   {detail}")
+    print(f"figures: {harness.of_rounds(args.rounds)}")
+    for label, result in ours.items():
+        print_run(label, result)
     print(peer.describe(measured))
     print()
 
+    if args.parts:
+        for label, result in ours.items():
+            print_parts(label, result)
     if "meta" in ours:
         meta = ours["meta"]
         per_it = meta["seconds"] / meta["iterations"]
@@ -307,39 +380,29 @@ def main() -> None:
             gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
             print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
     per_round, ratios, goals = summarise(rounds, peer_rates)
-    if ratios:
-        print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
-        for name, values in per_round.items():
-            print(f"ratio {name:<{WIDTH}}{harness.spread(values, 2, 'x')}")
-    else:
-        print("ratios: unknown, MiniWorld could not be measured")
-    for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
-        verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
-        if met is not None:
-            met_in = harness.rounds_met(per_round["meta"], multiple)
-            verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
-        print(f"goal  {goal}: {verdict}")
+    print_ratios(per_round, goals, machine["usable_cpus"])
 
     if "gpu" in machine and "meta" in ours and resolve_device(args.device).type == "cuda":
         met = ours["meta"]["frames_per_s"] >= GPU_GOAL
         verdict = "MET" if met else "NOT MET"
         print(f"goal  issue 4: meta >= {GPU_GOAL:,} frames/s on an H100: {verdict} on {machine['gpu']}")
 
+    report = {
+        "machine": machine,
+        "seconds": args.seconds,
+        "warmup_iters": args.warmup_iters,
+        "rounds": args.rounds,
+        "methods": ours,
+        "miniworld": measured.info,
+        "miniworld_steps_per_s": peer_rates,
+        "miniworld_error": measured.why,
+        "ratio_rounds": per_round,
+        "ratios": ratios,
+        "goals_met": goals,
+    }
     if args.json:
-        report = {
-            "machine": machine,
-            "seconds": args.seconds,
-            "warmup_iters": args.warmup_iters,
-            "rounds": args.rounds,
-            "methods": ours,
-            "miniworld": measured.info,
-            "miniworld_steps_per_s": peer_rates,
-            "miniworld_error": measured.why,
-            "ratio_rounds": per_round,
-            "ratios": ratios,
-            "goals_met": goals,
-        }
         print(json.dumps(report))
+    return report
 
 
 if __name__ == "__main__":

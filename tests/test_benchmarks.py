@@ -126,20 +126,6 @@ def test_performance_md_quotes_the_committed_scaling_csv():
     ]
 
 
-def test_collect_breakdown_times_every_part_and_restores_the_library():
-    from activeperc_env.core import Simulator
-    from activeperc_rl.models import Head
-
-    module = load_script("collect_breakdown")
-    originals = (Simulator.move, Simulator.look, Simulator.render, Head.forward)
-    result = module.breakdown("meta", num_envs=2, iterations=1, warmup_iters=0)
-    assert (Simulator.move, Simulator.look, Simulator.render, Head.forward) == originals
-    assert result["steps"] == 3 * 16  # meta: three rollouts of rollout_length 16
-    parts = [result[label] for label, *_ in module.PARTS if label in result]
-    assert len(parts) >= 4 and all(seconds > 0 for seconds in parts)  # physics, look, renders, networks
-    assert sum(parts) < result["collection"] < result["total"]
-
-
 def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone(harness):
     from activeperc_env.core import Simulator
 
@@ -326,6 +312,39 @@ def test_train_speed_combines_a_methods_rounds():
     per_round, medians, goals = train_speed.summarise([{"meta": r} for r in results], [500.0] * 4)
     assert per_round == {"meta": [1.0, 0.8, 0.9]} and medians == {"meta": 0.9}
     assert list(goals.values()) == [False, False]
+
+
+def test_train_speed_parts_time_every_part_within_the_collections_and_restore_the_library():
+    from activeperc_env.core import Simulator
+    from activeperc_rl.models import Head
+
+    module = load_script("train_speed")
+    originals = (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward)
+    result = module.bench_method("meta", num_envs=2, seconds=0.01, warmup_iters=0, parts=True)
+    assert (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward) == originals
+    assert result["iterations"] == 1 and result["frames"] == 3 * 16 * 2  # meta: three rollouts of 16 cycles, 2 rooms
+    parts = result["parts_s"]
+    assert list(parts) == list(module.PART_LABELS)
+    assert all(parts[part] > 0 for part in ("move", "look", "render", "forward"))
+    assert sum(parts.values()) < result["collect_s"] < result["seconds"]
+
+
+def test_train_speed_reports_the_parts_of_every_round_without_the_peer(capsys):
+    argv = ["--methods", "fixed_forward", "--num-envs", "2", "--seconds", "0.01", "--warmup-iters", "0"]
+    report = load_script("train_speed").main([*argv, "--rounds", "2", "--no-peer", "--parts"])
+    result = report["methods"]["fixed_forward"]
+    assert len(result["frames_per_s_rounds"]) == 2 and result["iterations"] == 2  # one iteration a round
+    assert result["parts_s"]["render"] > 0 and report["miniworld_error"] == "skipped (--no-peer)"
+    assert set(report["goals_met"].values()) == {None}
+    out = capsys.readouterr().out
+    assert "parts fixed_forward: collection" in out and "the rest (TorchRL, tensordict, sampling)" in out
+    assert "goal  issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores: UNKNOWN" in out
+
+
+def test_train_speed_parts_need_the_rooms_in_this_process(capsys):
+    with pytest.raises(SystemExit):
+        load_script("train_speed").main(["--parts", "--collector", "inprocess", "process"])
+    assert "--parts times the rooms of this process" in capsys.readouterr().err
 
 
 def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
