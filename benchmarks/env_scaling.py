@@ -1,38 +1,7 @@
-"""Throughput of the batched TorchRL env against its number of rooms, and its memory over many episodes.
+"""Throughput of the batched TorchRL env against its number of rooms, each over MiniWorld's raw steps/s, the bare
+``Simulator`` beside it at N = 64, and the env's memory over many episodes.
 
-What it measures (random actions throughout, each rate timed for ``--seconds`` after ``--warmup`` untimed
-seconds):
-
-1. For each N of ``--num-envs``: ``activeperc_rl.make_env(num_envs=N, looker=RandomPolicy(("looker",)))``
-   stepped as training steps it, ``env.step_and_maybe_reset`` with the mover's action from
-   ``RandomPolicy(("mover",))``, so finished rooms are restarted by TorchRL's auto-reset. The figure is
-   cycles/s summed over the N rooms; one cycle is the mover's move, the render of ``s_bar``, the looker's
-   look and the render of ``s'`` (as in training's looker mode; ``s'`` is drawn only for the rooms whose camera
-   the random look turned, the others reuse ``s_bar``).
-2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
-   each), measured by ``benchmarks/peer.py`` in a child process, in this same run
-   (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld
-   at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has). The Ns are timed in
-   ``--rounds`` rounds (3), MiniWorld before the first and after each; each round's rate is divided by the mean
-   of the two MiniWorld figures around it, and the report gives the medians over the rounds.
-3. With ``--memory-episodes E`` (the issue asks for 10,000), first, before any larger env has raised the
-   RSS: ``make_env(num_envs=--memory-rooms)`` stepped the same way until E episodes have ended over all its
-   rooms, sampling the resident memory (RSS) of this process after the warm-up and then about every E/100
-   episodes. It prints the RSS at the start, at the end and its maximum, the growth, and "flat" when the
-   maximum stays within 5 % of the start.
-4. When N = 64 is among them: in each round, right after the TorchRL env at N = 64, the bare
-   ``Simulator(num_envs=64)`` with the same random actions, timed by part (physics, renders, look, resets, ms
-   per cycle); the report gives each part's median over the rounds and how much more a cycle of the TorchRL env
-   took than the bare simulator's in the same round (each round's difference and their median: the machine's
-   speed drifts over minutes, so only figures timed side by side compare).
-
-It writes, only where asked: a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio,
-each the median over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against
-N with MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV of the RSS samples
-(``--memory-csv``: episodes, rss_mib). The committed ones are ``benchmarks/results/env_scaling.csv``,
-``docs/figures/env_scaling.png`` and ``benchmarks/results/env_memory.csv``.
-
-Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
     python benchmarks/env_scaling.py                                   # 5 s per N, 3 rounds, no memory run
     python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --rounds 1 --json

@@ -1,36 +1,7 @@
-"""Speed of the active-perception room against MiniWorld, measured in one run on this machine.
+"""Speed of the active-perception room's APIs against MiniWorld in one run: the PettingZoo AEC env (and where its
+cycle's time goes), the batched core ``Simulator`` and Gymnasium's vector envs, each over MiniWorld's raw steps/s.
 
-What it measures (random actions throughout, each figure timed for ``--seconds`` after a warm-up):
-
-1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's ``last()`` and step and
-   the looker's ``last()`` and step, as in PettingZoo's loop (each step gives one 80x60 observation; the mover's is
-   drawn only when the random look turned the camera, otherwise it is the looker's view again); the env is reset
-   when an episode ends. Then the same cycles again with timers on the env's simulator: where a cycle's time goes
-   (physics, renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts, random
-   actions).
-2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
-   over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
-   only the rooms whose camera turned), then resetting and rendering the rooms that are done.
-3. Gymnasium's vector API on ``activeperc/Joint-v1`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
-   one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
-   16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render (a
-   room's step that only resets it, the step after its episode ended, is not counted).
-4. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
-   (one render each), reset when an episode ends, in a child process (``peer.py``) so that a GL failure
-   there cannot stop our measurements; if it cannot run, the reason is printed instead.
-5. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
-   MiniWorld, the core at N=64 at least 3x MiniWorld.
-
-Figures 1 to 3, and the AEC cycle's breakdown, are timed in ``--rounds`` rounds (3), MiniWorld before the first
-round and after each, and each round's figure is divided by the mean of the two MiniWorld figures around it: the
-machine's speed drifts over minutes, and a ratio of figures taken far apart measures the drift. The report gives the
-median of the rounds for every figure and ratio, each round's ratio, and judges the goals on the median ratio.
-
-Every figure is taken for each room version of ``--versions`` (v1, the default room; ``--versions 0 1`` compares the
-paper-faithful v0 room with v1 in the same rounds).
-
-Run it from the repository root (MiniWorld comes with the ``bench`` extra,
-``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
     python benchmarks/env_speed.py              # 5 s per measurement, 3 rounds (about 3 minutes)
     python benchmarks/env_speed.py --versions 0 1 --seconds 3

@@ -1,39 +1,5 @@
-"""Training speed of every method against MiniWorld's raw env speed, measured in one run on this machine.
-
-What it measures (networks on ``--device``, the CPU by default; the default
-:class:`~activeperc_rl.config.TrainConfig` but for the method and ``--num-envs``):
-
-1. For each method of ``--methods`` and each collector of ``--collector`` (``inprocess``: this process steps the
-   rooms; ``process`` and ``ray``: ``--workers`` workers per env of TorchRL's multi-process or Ray collector, a
-   local Ray instance on this machine's CPUs): training frames/s, collection and learning together. The method is built
-   with :func:`~activeperc_rl.methods.make_method`, ``--warmup-iters`` iterations run untimed, then
-   :meth:`Method.iterate` runs until ``--seconds`` have passed; the figure is the sum of ``Iteration.frames``
-   (environment cycles over every room of every environment, E1 and E2 both for ``meta``) divided by the wall
-   time of those iterations. The time spent inside the collectors (``Method._next``, wrapped by this script
-   only; it includes the policy's and the in-loop looker's forward passes and the renders) is reported as
-   "collect", the rest of each iteration (losses, backward passes, optimizer steps, soft updates) as "learn".
-   The allocator is set as ``activeperc-train`` sets it (:func:`~activeperc_rl.allocator.keep_freed_memory`).
-2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, for ``--seconds``,
-   in a child process (``benchmarks/peer.py``) in this same run.
-3. Each method's frames/s divided by MiniWorld's steps/s, and the goals of the issues: ``meta`` at least 1x
-   MiniWorld's raw env speed on 2 cores (issue 3) and at least 1.5x (issue 4). Both goals are stated for a
-   2-core machine: the header prints how many CPUs this one has.
-
-The methods are timed in ``--rounds`` rounds (3), MiniWorld before the first round and after each, and each
-round's figure is divided by the mean of the two MiniWorld figures around it, because the machine's speed drifts
-over minutes. The report gives each method's median frames/s over the rounds and the median of its per-round
-ratios, with every round's ratio, and judges the goals on the median ratio.
-
-With ``--parts`` (in-process collection only), the time inside the collectors is also split into the time spent
-in ``Simulator.move`` (the physics of one control period, reward and episode logic), ``Simulator.look``,
-``Simulator.reset``, ``Simulator.render`` and ``Head.forward`` (every network's forward pass: the mover's policy
-and the looker in the loop), each printed per collected env step (one cycle of every room), with the rest of the
-collection time (TorchRL and tensordict bookkeeping, action sampling, auto-reset) and learning's time per
-iteration. The classes are patched only while a collection runs, so learning's forward passes are not counted.
-
-A training frame is one cycle of a room (the mover's move and, in looker mode, the look, each with its render),
-while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
-environment loop, as the issues state it.
+"""Training speed of every method against MiniWorld's raw env speed in one run, and with ``--parts`` where each
+method's collection time goes (physics, renders, the networks' forward passes, the rest).
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
 

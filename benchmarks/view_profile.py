@@ -1,25 +1,6 @@
-"""Where one first-person view's time goes, and what leaving the boxes out of sight out of the draw would save.
+"""Where one first-person view's time goes (GL context, state, scene, draw calls, read-back), and what culling the
+boxes out of sight before the draw would save; it reads the renderer's private members.
 
-The views are those of random play in the default room (one room, random moves and looks, new episodes as
-they end). Each is drawn the way ``TiledRenderer.render`` draws one view, in its own pass, and timed in five parts:
-
-- ``context``: the renderer's GL context made current before the view and released after it (every
-  ``TiledRenderer.render`` call does both, so that an env may be stepped from any thread);
-- ``pose``: the room's state loaded into the renderer's ``MjData`` (``mj_kinematics``, ``mj_camlight``);
-- ``scene``: ``mjv_updateScene``, the list of geoms to draw;
-- ``draw``: ``mjr_render``, the GL draw calls (llvmpipe queues the work);
-- ``read``: ``mjr_readPixels``, the read-back, which waits for llvmpipe to finish drawing.
-
-Before the timed views, ``WARM_UP`` views are drawn each way untimed: the first draw in a new context compiles
-llvmpipe's shaders (tens of milliseconds), which would otherwise fall on whichever way drew first.
-
-Every view is also drawn with the room's boxes (walls, goal, occluders) that lie wholly outside the camera's
-view frustum moved to a geom group the view does not draw, which is what per-view culling would do, right before
-or right after the whole draw (each order in half the views). Its pixels must be those of the whole draw (the
-script says whether they are); it reports the same four parts, the boxes drawn per view, and ``cull``, the time
-the visibility test itself took (numpy, per view).
-
-The script reads the renderer's private members (``_pose``, ``_scene``, ...): it measures their work, not an API.
 Run it from the repository root::
 
     python benchmarks/view_profile.py                # 2,000 views
@@ -36,8 +17,15 @@ import time
 
 import numpy as np
 
-PARTS = ("context", "pose", "cull", "scene", "draw", "read")
-WARM_UP = 20  # untimed views drawn each way first
+PARTS = (  # of one view, as TiledRenderer.render draws it in its own pass
+    "context",  # the GL context made current before the view and released after it (so any thread may step an env)
+    "pose",  # the room's state loaded into the renderer's MjData (mj_kinematics, mj_camlight)
+    "cull",  # the test of which boxes are in view (numpy; culled views only)
+    "scene",  # mjv_updateScene: the list of geoms to draw
+    "draw",  # mjr_render: the GL draw calls (llvmpipe queues the work)
+    "read",  # mjr_readPixels: the read-back, which waits for llvmpipe to finish drawing
+)
+WARM_UP = 20  # untimed views drawn each way first: a new context's first draw compiles llvmpipe's shaders
 MODES = ("whole", "culled")
 CULL_MARGIN = 0.01  # metres: a box counts as out of sight only this far beyond a frustum plane
 
@@ -88,7 +76,9 @@ def random_states(count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def profile(views: int, seed: int) -> dict:
-    """Time every part of :data:`PARTS` for ``views`` views, each drawn whole and culled; compare their pixels."""
+    """Time every part of :data:`PARTS` for ``views`` views of random play, each drawn whole and culled (the boxes,
+    walls, goal and occluders, that lie wholly outside the camera's frustum moved to a geom group the view does not
+    draw, as per-view culling would do), each way first in half the views; compare their pixels."""
     import mujoco
 
     from activeperc_env import Simulator, names
