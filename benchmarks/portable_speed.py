@@ -19,6 +19,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import harness
+
+from activeperc_rl.config import METHODS
 from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
 
 MODES = {  # name: (extra environment, extra flags) of activeperc-train
@@ -46,10 +49,13 @@ def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Parse the flags, train every mode in rounds and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--method", default="meta", help="method to train (meta)")
-    parser.add_argument("--frames", type=int, default=20_000, help="frames per run (20000)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of every mode (3)")
+    parser.add_argument("--method", choices=METHODS, default="meta", help="method to train (meta)")
+    parser.add_argument(
+        "--frames", type=harness.at_least(int, "frames", 1), default=20_000, help="frames per run (20000)"
+    )
+    parser.add_argument("--rounds", type=harness.at_least(int, "rounds", 1), default=3, help="rounds of every mode (3)")
     args = parser.parse_args(argv)
     import torch
 

@@ -15,6 +15,7 @@ import json
 import math
 import time
 
+import harness
 import numpy as np
 
 PARTS = (  # of one view, as TiledRenderer.render draws it in its own pass
@@ -144,14 +145,14 @@ def profile(views: int, seed: int) -> dict:
 def main(argv: list[str] | None = None) -> dict:
     """Parse the flags, profile the views and print the report; return it."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--views", type=int, default=2000, help="views of random play to draw (2000)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the episodes and the random actions (0)")
+    parser.add_argument(
+        "--views", type=harness.at_least(int, "views", 1), default=2000, help="views of random play to draw (2000)"
+    )
+    parser.add_argument(
+        "--seed", type=harness.at_least(int, "seed", 0), default=0, help="seed of the episodes and random actions (0)"
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args(argv)
-    if args.views < 1:
-        parser.error(f"--views must be >= 1, got {args.views}")
-    if args.seed < 0:
-        parser.error(f"--seed must be >= 0, got {args.seed}")
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl)
 

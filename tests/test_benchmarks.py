@@ -104,6 +104,22 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     assert "seconds must be > 0, got nan" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "script, argv, error",
+    [
+        ("env_speed", ["--rounds", "0"], "rounds must be >= 1, got 0"),
+        ("train_speed", ["--seconds", "0"], "seconds must be > 0, got 0"),
+        ("view_profile", ["--views", "0"], "views must be >= 1, got 0"),
+        ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
+        ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
+    ],
+)
+def test_every_script_refuses_bad_values_before_timing(script, argv, error, capsys):
+    with pytest.raises(SystemExit):
+        load_script(script).main(argv)
+    assert error in capsys.readouterr().err
+
+
 def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scaling, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(env_scaling, "bench_rooms", lambda *args: pytest.fail("timed before checking --csv"))
     with pytest.raises(SystemExit):
