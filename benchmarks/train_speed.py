@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
-import importlib
 import json
 import statistics
 import time
@@ -28,21 +27,24 @@ GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("issue 4: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
 )
 GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
-COLLECTION_PARTS = (  # (module, class, methods) timed within the collections with --parts
-    ("activeperc_env.core", "Simulator", tuple(harness.SIMULATOR_PARTS)),
-    ("activeperc_rl.models", "Head", ("forward",)),
-)
 PART_LABELS = harness.SIMULATOR_PARTS | {"forward": "network forward passes (Head.forward)"}
 WIDTH = 24  # of a run's label in the report
 
 
+def collection_parts() -> list[tuple[type, tuple[str, ...]]]:
+    """The classes whose methods ``--parts`` times within the collections, each with those methods' names."""
+    from activeperc_env.core import Simulator
+    from activeperc_rl.models import Head
+
+    return [(Simulator, tuple(harness.SIMULATOR_PARTS)), (Head, ("forward",))]
+
+
 def time_collections(method, stopwatch: harness.Stopwatch, parts: bool) -> None:
     """Time ``method``'s collections (its ``_next``, wrapped on this instance only) as the part ``collect`` of
-    ``stopwatch`` and, with ``parts``, the methods of :data:`COLLECTION_PARTS` within them: their classes are patched
+    ``stopwatch`` and, with ``parts``, the methods of :func:`collection_parts` within them: their classes are patched
     only while a collection runs, so learning's forward passes are not counted."""
     next_rollout = stopwatch.timed("collect", method._next)
-    owners = [(getattr(importlib.import_module(module), name), methods) for module, name, methods in COLLECTION_PARTS]
-    owners = owners if parts else []
+    owners = collection_parts() if parts else []
 
     def collect(collector):
         with contextlib.ExitStack() as watching:
@@ -51,6 +53,20 @@ def time_collections(method, stopwatch: harness.Stopwatch, parts: bool) -> None:
             return next_rollout(collector)
 
     method._next = collect
+
+
+def iterate_for(method, seconds: float) -> tuple[int, int, dict, float]:
+    """Run ``method.iterate()`` until ``seconds`` have passed; return the frames, the iterations, the last
+    iteration's losses and the wall time."""
+    frames, iterations = 0, 0
+    start = time.perf_counter()
+    while True:
+        iteration = method.iterate()
+        frames += iteration.frames
+        iterations += 1
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return frames, iterations, iteration.losses, elapsed
 
 
 def bench_method(
@@ -91,17 +107,8 @@ def bench_method(
     try:
         for _ in range(warmup_iters):
             method.iterate()
-        frames, iterations, losses = 0, 0, {}
         stopwatch.restart()
-        start = time.perf_counter()
-        while True:
-            iteration = method.iterate()
-            frames += iteration.frames
-            iterations += 1
-            losses = iteration.losses
-            elapsed = time.perf_counter() - start
-            if elapsed >= seconds:
-                break
+        frames, iterations, losses, elapsed = iterate_for(method, seconds)
     finally:
         method.close()
     collect_s = stopwatch.spent["collect"]
@@ -272,15 +279,30 @@ def print_run(label: str, result: dict) -> None:
 
 def print_parts(label: str, result: dict) -> None:
     """The report's lines on where one run's collection time went (``--parts``): milliseconds per env step (one
-    cycle of every room) in each part, and learning's per iteration."""
+    cycle of every room) in each part."""
     steps, collect = result["frames"] / result["num_envs"], result["collect_s"]
     print(f"parts {label}: collection {1e3 * collect / steps:.1f} ms per env step of {result['num_envs']} rooms")
     rows = [(PART_LABELS[part], spent) for part, spent in result["parts_s"].items()]
     rows.append(("the rest (TorchRL, tensordict, sampling)", collect - sum(result["parts_s"].values())))
     for name, spent in rows:
         print(f"  {name:<40}{1e3 * spent / steps:7.2f} ms per step  ({spent / collect:4.0%})")
-    learn = result["learn_s"]
-    print(f"  learning: {1e3 * learn / result['iterations']:.0f} ms per iteration ({learn / result['seconds']:.0%})")
+
+
+def print_iteration(label: str, result: dict) -> None:
+    """The report's line on one run's mean iteration: its milliseconds, collection's and learning's."""
+    per_it = result["seconds"] / result["iterations"]
+    collect = result["collect_s"] / result["iterations"]
+    print(
+        f"iter  {label:<{WIDTH}}{per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
+        f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
+    )
+
+
+def print_gain(name: str, label: str, rounds: list[dict[str, dict]]) -> None:
+    """The report's line on how much faster the run ``label`` trained than method ``name`` in this process, round by
+    round."""
+    gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
+    print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
 
 
 def print_ratios(per_round: dict, goals: dict, cpus: int) -> None:
@@ -329,22 +351,13 @@ def main(argv: list[str] | None = None) -> dict:
     print(peer.describe(measured))
     print()
 
-    if args.parts:
-        for label, result in ours.items():
+    for label, result in ours.items():
+        print_iteration(label, result)
+        if args.parts:
             print_parts(label, result)
-    if "meta" in ours:
-        meta = ours["meta"]
-        per_it = meta["seconds"] / meta["iterations"]
-        collect = meta["collect_s"] / meta["iterations"]
-        print(
-            f"meta  one iteration: {per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
-            f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
-        )
     for name, collector in runs:
-        if collector != "inprocess" and name in ours:  # the same method in this process, round by round
-            label = run_label(name, collector, args.workers)
-            gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
-            print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
+        if collector != "inprocess" and name in ours:
+            print_gain(name, run_label(name, collector, args.workers), rounds)
     per_round, ratios, goals = summarise(rounds, peer_rates)
     print_ratios(per_round, goals, machine["usable_cpus"])
 
