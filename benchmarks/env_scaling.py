@@ -1,38 +1,7 @@
-"""Throughput of the batched TorchRL env against its number of rooms, and its memory over many episodes.
+"""Throughput of the batched TorchRL env against its number of rooms, each over MiniWorld's raw steps/s, the bare
+``Simulator`` beside it at N = 64, and the env's memory over many episodes.
 
-What it measures (random actions throughout, each rate timed for ``--seconds`` after ``--warmup`` untimed
-seconds):
-
-1. For each N of ``--num-envs``: ``activeperc_rl.make_env(num_envs=N, looker=RandomPolicy(("looker",)))``
-   stepped as training steps it, ``env.step_and_maybe_reset`` with the mover's action from
-   ``RandomPolicy(("mover",))``, so finished rooms are restarted by TorchRL's auto-reset. The figure is
-   cycles/s summed over the N rooms; one cycle is the mover's move, the render of ``s_bar``, the looker's
-   look and the render of ``s'`` (as in training's looker mode; ``s'`` is drawn only for the rooms whose camera
-   the random look turned, the others reuse ``s_bar``).
-2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second (one render
-   each), measured by ``benchmarks/peer.py`` in a child process, in this same run
-   (``--no-peer`` skips it). Then the ratio ours/MiniWorld for every N, and the goal: at least 5x MiniWorld
-   at N = 64 on 2 CPU cores (the header prints how many CPUs this machine has). The Ns are timed in
-   ``--rounds`` rounds (3), MiniWorld before the first and after each; each round's rate is divided by the mean
-   of the two MiniWorld figures around it, and the report gives the medians over the rounds.
-3. With ``--memory-episodes E`` (the issue asks for 10,000), first, before any larger env has raised the
-   RSS: ``make_env(num_envs=--memory-rooms)`` stepped the same way until E episodes have ended over all its
-   rooms, sampling the resident memory (RSS) of this process after the warm-up and then about every E/100
-   episodes. It prints the RSS at the start, at the end and its maximum, the growth, and "flat" when the
-   maximum stays within 5 % of the start.
-4. When N = 64 is among them: in each round, right after the TorchRL env at N = 64, the bare
-   ``Simulator(num_envs=64)`` with the same random actions, timed by part (physics, renders, look, resets, ms
-   per cycle); the report gives each part's median over the rounds and how much more a cycle of the TorchRL env
-   took than the bare simulator's in the same round (each round's difference and their median: the machine's
-   speed drifts over minutes, so only figures timed side by side compare).
-
-It writes, only where asked: a CSV of the rates (``--csv``: num_envs, cycles_per_s, miniworld_steps_per_s, ratio,
-each the median over the rounds; the last two empty when MiniWorld was not measured), a plot of cycles/s against
-N with MiniWorld's steps/s and 5x that (``--plot``) and, in memory mode, a CSV of the RSS samples
-(``--memory-csv``: episodes, rss_mib). The committed ones are ``benchmarks/results/env_scaling.csv``,
-``docs/figures/env_scaling.png`` and ``benchmarks/results/env_memory.csv``.
-
-Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
     python benchmarks/env_scaling.py                                   # 5 s per N, 3 rounds, no memory run
     python benchmarks/env_scaling.py --num-envs 16 64 --seconds 2 --rounds 1 --json
@@ -42,24 +11,15 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
 from __future__ import annotations
 
 import argparse
-import csv
 import gc
 import json
 import os
 import statistics
-import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
-
-import env_speed  # noqa: E402 (needs the path above)
-import harness  # noqa: E402
-import peer  # noqa: E402
-from harness import add_timing_flags, at_least  # noqa: E402
-
-from activeperc_rl.atomic import atomic_path, check_writable  # noqa: E402
+import harness
+import peer
 
 DEFAULT_NUM_ENVS = (1, 4, 16, 64, 256, 1024)
 GOAL_NUM_ENVS = 64  # the goal is judged at this number of rooms
@@ -115,35 +75,22 @@ def bench_rooms(num_envs: int, seconds: float, warmup: float, seed: int) -> floa
 
 
 def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[str, float]:
-    """Where a cycle of the bare ``Simulator(num_envs)`` spends its time: seconds per cycle of each part.
-
-    Parts: ``physics`` (``move``: the wheels driven for one control period), ``render`` (both views, and the
-    views of restarted rooms), ``look`` (the pan joint set), ``reset`` (new layouts of finished rooms); and
-    ``cycles_per_s``, summed over the rooms, for comparison with the TorchRL env at the same N.
-    """
-    sim, rng = env_speed.random_core(num_envs, seed)
-    spent = dict.fromkeys(("physics", "render", "look", "reset"), 0.0)
-
-    def timed(part: str, call: Callable[[], object]) -> None:
-        start = time.perf_counter()
-        call()
-        spent[part] += time.perf_counter() - start
-
-    cycles = 0
+    """Where a cycle of the bare ``Simulator(num_envs)`` (:func:`harness.core_cycle`) spends its time: seconds per
+    cycle in each method of :data:`harness.SIMULATOR_PARTS`; and ``cycles_per_s``, summed over the rooms, for
+    comparison with the TorchRL env at the same N."""
+    sim, rng = harness.random_core(num_envs, seed)
+    stopwatch = harness.Stopwatch()
 
     def cycle() -> int:
-        nonlocal cycles
-        env_speed.core_cycle(sim, rng, timed)
-        cycles += 1
+        harness.core_cycle(sim, rng)
         return 1
 
     try:
-        harness.timed_rate(cycle, warmup, 0.0)  # the warm-up, not counted
-        spent, cycles = dict.fromkeys(spent, 0.0), 0
-        rate = harness.timed_rate(cycle, seconds, 0.0)
+        with stopwatch.watching(sim, harness.SIMULATOR_PARTS):
+            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
     finally:
         sim.close()
-    return {part: total / cycles for part, total in spent.items()} | {"cycles_per_s": rate * num_envs}
+    return per_cycle | {"cycles_per_s": rate * num_envs}
 
 
 def measure_memory(episodes: int, num_envs: int, warmup: float, seed: int) -> dict:
@@ -187,17 +134,11 @@ def measure_memory(episodes: int, num_envs: int, warmup: float, seed: int) -> di
     }
 
 
-def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
-    """Write ``rows`` under ``header`` to the CSV file ``path`` (atomically; ``None`` cells are left empty)."""
-    with atomic_path(path) as temporary, open(temporary, "w", newline="") as out:
-        writer = csv.writer(out)
-        writer.writerow(header)
-        writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
-
-
 def plot_scaling(path: Path, rates: dict[int, float], peer_rate: float | None, cpus: int) -> None:
     """Plot cycles/s against the number of rooms (log x) with MiniWorld's steps/s and 5x that, to ``path``."""
     import matplotlib
+
+    from activeperc_rl.atomic import atomic_path
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -228,35 +169,63 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--num-envs",
         nargs="+",
-        type=at_least(int, "num_envs", 1),
+        type=harness.at_least(int, "num_envs", 1),
         default=list(DEFAULT_NUM_ENVS),
         metavar="N",
         help=f"numbers of rooms to time ({' '.join(map(str, DEFAULT_NUM_ENVS))})",
     )
-    add_timing_flags(parser, seconds=5.0, warmup=1.0, per="N")
-    parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
+    harness.add_timing_flags(parser, seconds=5.0, warmup=1.0, per="N")
     parser.add_argument(
         "--memory-episodes",
-        type=at_least(int, "memory_episodes", 0),
+        type=harness.at_least(int, "memory_episodes", 0),
         default=0,
         metavar="E",
         help="memory mode: run until E episodes ended and sample the RSS (0: off; the issue asks for 10000)",
     )
     parser.add_argument(
-        "--memory-rooms", type=at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
+        "--memory-rooms", type=harness.at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
     )
     parser.add_argument("--csv", type=Path, help="write the rates to this CSV (default: none)")
     parser.add_argument("--plot", type=Path, help="write the plot to this image (default: none)")
     parser.add_argument("--memory-csv", type=Path, help="write the RSS samples to this CSV (default: none)")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args(argv)
-    for flag, path in (("--csv", args.csv), ("--plot", args.plot), ("--memory-csv", args.memory_csv)):
-        if path is not None:
-            try:
-                check_writable(path)  # before minutes of timing, not after them
-            except ValueError as error:
-                parser.error(f"{flag}: {error}")
+    harness.refuse_unwritable(parser, {"--csv": args.csv, "--plot": args.plot, "--memory-csv": args.memory_csv})
     return args
+
+
+def print_memory(memory: dict) -> None:
+    """The report's lines on :func:`measure_memory`'s run."""
+    print(
+        f"memory make_env(num_envs={memory['num_envs']}), {memory['episodes']} episodes in {memory['cycles']}"
+        f" cycles: RSS start {memory['start_mib']:.1f} MiB (after warm-up), end {memory['end_mib']:.1f} MiB,"
+        f" max {memory['max_mib']:.1f} MiB"
+    )
+    state = "flat" if memory["flat"] else "NOT flat"
+    print(
+        f"memory growth {memory['growth_mib']:+.1f} MiB at the end, {memory['max_growth_mib']:+.1f} MiB at the max:"
+        f" {state} (tolerance {FLAT_TOLERANCE:.0%} of the start RSS)"
+    )
+
+
+def split_summary(rounds: list[dict[int, float]], splits: list[dict[str, float]]) -> dict:
+    """The medians of :func:`core_split`'s rounds, and how many seconds more a cycle of the TorchRL env took than one
+    of the bare simulator in each round (``torchrl_overhead_rounds``) and in the median (``torchrl_overhead``)."""
+    split = {part: statistics.median(s[part] for s in splits) for part in splits[0]}
+    extra = [
+        GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - GOAL_NUM_ENVS / s["cycles_per_s"]
+        for r, s in zip(rounds, splits, strict=True)
+    ]
+    return split | {"torchrl_overhead": statistics.median(extra), "torchrl_overhead_rounds": extra}
+
+
+def print_split(split: dict) -> None:
+    """The report's lines on :func:`split_summary`."""
+    alone = f"split Simulator(num_envs={GOAL_NUM_ENVS}) alone: {split['cycles_per_s']:.1f} cycles/s"
+    parts = ", ".join(f"{label} {1e3 * split[part]:.1f} ms" for part, label in harness.SIMULATOR_PARTS.items())
+    print(f"{alone}; per cycle: {parts}")
+    extra = harness.spread([1e3 * value for value in split["torchrl_overhead_rounds"]], 1, " ms")
+    print(f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator, same round: {extra} per cycle")
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -266,8 +235,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     machine = harness.machine_info()
     print("activeperc batched env throughput vs rooms")
-    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
-    print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
+    print(harness.machine_line(machine))
     print(
         f"timing:  {args.seconds:g} s per N after {args.warmup:g} s warm-up, seed {args.seed}, random actions;"
         f" {args.rounds} round(s)" + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
@@ -278,19 +246,9 @@ def main(argv: list[str] | None = None) -> dict:
     memory = None
     if args.memory_episodes:
         memory = measure_memory(args.memory_episodes, args.memory_rooms, args.warmup, args.seed)
+        print_memory(memory)
         if args.memory_csv:
-            write_csv(args.memory_csv, ("episodes", "rss_mib"), memory["samples"])
-        print(
-            f"memory make_env(num_envs={memory['num_envs']}), {memory['episodes']} episodes in {memory['cycles']}"
-            f" cycles: RSS start {memory['start_mib']:.1f} MiB (after warm-up), end {memory['end_mib']:.1f} MiB,"
-            f" max {memory['max_mib']:.1f} MiB"
-        )
-        state = "flat" if memory["flat"] else "NOT flat"
-        print(
-            f"memory growth {memory['growth_mib']:+.1f} MiB at the end, {memory['max_growth_mib']:+.1f} MiB at the max:"
-            f" {state} (tolerance {FLAT_TOLERANCE:.0%} of the start RSS)"
-        )
-        if args.memory_csv:
+            harness.write_csv(args.memory_csv, ("episodes", "rss_mib"), memory["samples"])
             print(f"wrote {args.memory_csv}")
         print()
         gc.collect()
@@ -310,15 +268,14 @@ def main(argv: list[str] | None = None) -> dict:
                 gc.collect()
         return rates
 
-    if args.no_peer:
-        measured = peer.Rounds(ours=[measure(i) for i in range(args.rounds)], peer=None, why="skipped (--no-peer)")
-    else:
-        measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads)
+    measured = peer.in_rounds(
+        args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads, skip=args.no_peer
+    )
     rounds = measured.ours
     print()
 
     rates = {n: statistics.median(r[n] for r in rounds) for n in rounds[0]}
-    print(f"figures: {f'median of {args.rounds} rounds' if args.rounds > 1 else 'one round'}")
+    print(f"figures: {harness.of_rounds(args.rounds)}")
     for n, rate in rates.items():
         print(f"ours  make_env(num_envs={n:<5}) {rate:10.1f} cycles/s   ({rate / n:7.1f} per room)")
     peer_rate = statistics.median(measured.peer) if measured.peer else None
@@ -333,35 +290,20 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"ratio N={n:<5} {harness.spread(values, 2, 'x')} MiniWorld raw steps/s")
     goal = f"N={GOAL_NUM_ENVS} >= {GOAL_MULTIPLE:g}x MiniWorld raw env speed on 2 cores"
     met = ratios[GOAL_NUM_ENVS] >= GOAL_MULTIPLE if GOAL_NUM_ENVS in ratios else None
-    verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
+    verdict = harness.verdict(met, per_round.get(GOAL_NUM_ENVS), GOAL_MULTIPLE, machine["usable_cpus"])
     if met is None:
         verdict += " (MiniWorld not measured)" if not peer_rate else f" (N={GOAL_NUM_ENVS} not timed)"
-    else:
-        met_in = harness.rounds_met(per_round[GOAL_NUM_ENVS], GOAL_MULTIPLE)
-        verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
     print(f"goal  {goal}: {verdict}")
 
     split = None
     if splits:
-        parts = [part for part in splits[0] if part != "cycles_per_s"]
-        split = {part: statistics.median(s[part] for s in splits) for part in (*parts, "cycles_per_s")}
-        extra = [  # seconds more per cycle for the TorchRL env than for the bare simulator, round by round
-            GOAL_NUM_ENVS / r[GOAL_NUM_ENVS] - GOAL_NUM_ENVS / s["cycles_per_s"]
-            for r, s in zip(rounds, splits, strict=True)
-        ]
-        split["torchrl_overhead"] = statistics.median(extra)
-        split["torchrl_overhead_rounds"] = extra
+        split = split_summary(rounds, splits)
         print()
-        alone = f"split Simulator(num_envs={GOAL_NUM_ENVS}) alone: {split['cycles_per_s']:.1f} cycles/s"
-        print(f"{alone}; per cycle: " + ", ".join(f"{part} {1e3 * split[part]:.1f} ms" for part in parts))
-        print(
-            f"split TorchRL env at N={GOAL_NUM_ENVS} minus the bare simulator, same round: "
-            f"{harness.spread([1e3 * value for value in extra], 1, ' ms')} per cycle"
-        )
+        print_split(split)
 
     rows = [(n, rate, peer_rate, ratios.get(n)) for n, rate in rates.items()]
     if args.csv:
-        write_csv(args.csv, CSV_COLUMNS, rows)
+        harness.write_csv(args.csv, CSV_COLUMNS, rows)
         print(f"wrote {args.csv}")
     if args.plot:
         plot_scaling(args.plot, rates, peer_rate, machine["usable_cpus"])

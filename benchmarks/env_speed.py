@@ -1,36 +1,7 @@
-"""Speed of the active-perception room against MiniWorld, measured in one run on this machine.
+"""Speed of the active-perception room's APIs against MiniWorld in one run: the PettingZoo AEC env (and where its
+cycle's time goes), the batched core ``Simulator`` and Gymnasium's vector envs, each over MiniWorld's raw steps/s.
 
-What it measures (random actions throughout, each figure timed for ``--seconds`` after a warm-up):
-
-1. The PettingZoo AEC env ``activeperc_env.env()``: cycles/s, one cycle being the mover's ``last()`` and step and
-   the looker's ``last()`` and step, as in PettingZoo's loop (each step gives one 80x60 observation; the mover's is
-   drawn only when the random look turned the camera, otherwise it is the looker's view again); the env is reset
-   when an episode ends. Then the same cycles again with timers on the env's simulator: where a cycle's time goes
-   (physics, renders, look, resets, and the rest: PettingZoo's API, action checks, observation dicts, random
-   actions).
-2. The batched core ``activeperc_env.Simulator(num_envs=N)`` at N = 1, 16 and 64: cycles/s summed
-   over the N rooms, one cycle being ``move``, ``render``, ``look``, ``render`` (the second render draws
-   only the rooms whose camera turned), then resetting and rendering the rooms that are done.
-3. Gymnasium's vector API on ``activeperc/Joint-v1`` with 16 rooms: ``gymnasium.make_vec`` (our vector env over
-   one batched core) and ``gymnasium.make_vec(..., vectorization_mode="sync")`` (Gymnasium's ``SyncVectorEnv`` of
-   16 single-room envs): steps/s summed over the rooms, one step being a joint move-and-look and one render (a
-   room's step that only resets it, the step after its episode ended, is not counted).
-4. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60 observations: raw ``env.step`` calls per second
-   (one render each), reset when an episode ends, in a child process (``peer.py``) so that a GL failure
-   there cannot stop our measurements; if it cannot run, the reason is printed instead.
-5. Our figures divided by MiniWorld's, and whether the goals are met: the AEC env at least 1x
-   MiniWorld, the core at N=64 at least 3x MiniWorld.
-
-Figures 1 to 3, and the AEC cycle's breakdown, are timed in ``--rounds`` rounds (3), MiniWorld before the first
-round and after each, and each round's figure is divided by the mean of the two MiniWorld figures around it: the
-machine's speed drifts over minutes, and a ratio of figures taken far apart measures the drift. The report gives the
-median of the rounds for every figure and ratio, each round's ratio, and judges the goals on the median ratio.
-
-Every figure is taken for each room version of ``--versions`` (v1, the default room; ``--versions 0 1`` compares the
-paper-faithful v0 room with v1 in the same rounds).
-
-Run it from the repository root (MiniWorld comes with the ``bench`` extra,
-``pip install -e .[bench]`` or ``pip install miniworld==2.1.0``)::
+Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
     python benchmarks/env_speed.py              # 5 s per measurement, 3 rounds (about 3 minutes)
     python benchmarks/env_speed.py --versions 0 1 --seconds 3
@@ -42,16 +13,9 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
-import time
-from collections.abc import Callable
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # peer.py sits next to this file
-
-import harness  # noqa: E402 (needs the path above)
-import peer  # noqa: E402
-from harness import add_timing_flags, machine_info, timed_rate  # noqa: E402
+import harness
+import peer
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
@@ -74,7 +38,8 @@ def gl_renderer_name(sim) -> str:
 
 def random_aec(seed: int, version: int = 1):
     """The PettingZoo AEC env of room ``version`` reset from ``seed``, and one random-action cycle of it (``cycle() ->
-    1``) that resets the env when an episode ends."""
+    1``): the mover's ``last()`` and step, then the looker's, as PettingZoo's loop makes them (each step gives one
+    80x60 view; the mover's is drawn only when the look turned the camera); the env is reset when an episode ends."""
     import activeperc_env
 
     env = activeperc_env.env(version=version)
@@ -98,102 +63,43 @@ def bench_aec(seconds: float, warmup: float, seed: int, version: int = 1) -> tup
     env, cycle = random_aec(seed, version)
     gl_renderer = gl_renderer_name(env.unwrapped.sim)
     try:
-        return timed_rate(cycle, seconds, warmup), gl_renderer
+        return harness.timed_rate(cycle, seconds, warmup), gl_renderer
     finally:
         env.close()
 
 
-AEC_PARTS = {
-    "move": "physics (Simulator.move)",
-    "render": "renders (Simulator.render)",
-    "look": "look (Simulator.look)",
-    "reset": "resets (Simulator.reset)",
-}
-
-
 def aec_breakdown(seconds: float, warmup: float, seed: int, version: int = 1) -> dict[str, float]:
-    """Where an AEC cycle's time goes: milliseconds per cycle in each of :data:`AEC_PARTS`, in ``"rest"`` (PettingZoo's
-    API, action checks, observation dicts, drawing the random actions) and in all, ``"total"``.
+    """Where an AEC cycle's time goes: milliseconds per cycle in each method of :data:`harness.SIMULATOR_PARTS`, in
+    ``"rest"`` (PettingZoo's API, action checks, observation dicts, drawing the random actions) and in all,
+    ``"total"``.
 
     The same random cycles as :func:`bench_aec`, timed again apart from it so that the timers do not touch its rate:
     the env's own simulator gets timing wrappers on its methods (instance attributes; the class is untouched).
     """
     env, cycle = random_aec(seed, version)
-    sim = env.unwrapped.sim
-    spent = dict.fromkeys(AEC_PARTS, 0.0)
-
-    def timer(part: str, method):
-        def timed(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return method(*args, **kwargs)
-            finally:
-                spent[part] += time.perf_counter() - start
-
-        return timed
-
-    for part in AEC_PARTS:
-        setattr(sim, part, timer(part, getattr(sim, part)))
+    stopwatch = harness.Stopwatch()
     try:
-        timed_rate(cycle, warmup, 0.0)  # the warm-up, whose time is then forgotten
-        spent.update(dict.fromkeys(spent, 0.0))
-        start = time.perf_counter()
-        rate = timed_rate(cycle, seconds, 0.0)
-        elapsed = time.perf_counter() - start
+        with stopwatch.watching(env.unwrapped.sim, harness.SIMULATOR_PARTS):
+            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
     finally:
         env.close()
-    total = 1e3 / rate  # ms per cycle
-    result = {part: total * t / elapsed for part, t in spent.items()}  # each part's share of a cycle
-    result["total"] = total
-    result["rest"] = result["total"] - sum(result[part] for part in AEC_PARTS)
+    result = {part: 1e3 * spent for part, spent in per_cycle.items()}
+    result["total"] = 1e3 / rate
+    result["rest"] = result["total"] - sum(per_cycle.values()) * 1e3
     return result
 
 
-def untimed(part: str, call: Callable[[], object]) -> None:
-    """The ``timed`` hook of :func:`core_cycle` that only makes the call."""
-    call()
-
-
-def core_cycle(sim, rng, timed: Callable[[str, Callable[[], object]], None] = untimed) -> None:
-    """One random-action cycle of every room of ``sim``: move, render, look, render, then reset and render the
-    finished rooms. Each step goes through ``timed(part, call)``, ``part`` being 'physics', 'render', 'look'
-    or 'reset'."""
-    import numpy as np
-
-    num_envs = sim.num_envs
-    timed("physics", lambda: sim.move(rng.integers(0, 3, num_envs)))
-    timed("render", sim.render)
-    timed("look", lambda: sim.look(rng.integers(0, 3, num_envs)))
-    timed("render", sim.render)
-    done = np.flatnonzero(sim.done)
-    if done.size:
-        timed("reset", lambda: sim.reset(done))
-        timed("render", lambda: sim.render(done))
-
-
-def random_core(num_envs: int, seed: int, version: int = 1):
-    """A ``Simulator(num_envs)`` of room ``version`` reset from ``seed`` with its first views rendered, and the rng of
-    its actions."""
-    import numpy as np
-
-    import activeperc_env
-
-    sim = activeperc_env.Simulator(activeperc_env.EnvConfig(version=version), num_envs=num_envs)
-    sim.reset(seeds=seed + np.arange(num_envs))
-    sim.render()
-    return sim, np.random.default_rng(seed)
-
-
 def bench_core(num_envs: int, seconds: float, warmup: float, seed: int, version: int = 1) -> float:
-    """Cycles/s of ``Simulator(num_envs)`` with random actions, summed over its rooms (2 renders a cycle)."""
-    sim, rng = random_core(num_envs, seed, version)
+    """Cycles/s of ``Simulator(num_envs)`` with random actions (:func:`harness.core_cycle`: up to 2 renders a cycle),
+    summed over its rooms."""
+    sim, rng = harness.random_core(num_envs, seed, version)
 
     def cycle() -> int:
-        core_cycle(sim, rng)
+        harness.core_cycle(sim, rng)
         return num_envs
 
     try:
-        return timed_rate(cycle, seconds, warmup)
+        return harness.timed_rate(cycle, seconds, warmup)
     finally:
         sim.close()
 
@@ -217,7 +123,7 @@ def bench_gym_vector(mode: str, seconds: float, warmup: float, seed: int, versio
         return stepped
 
     try:
-        return timed_rate(step, seconds, warmup)
+        return harness.timed_rate(step, seconds, warmup)
     finally:
         env.close()
 
@@ -257,30 +163,58 @@ def summarise(rounds: list[dict[str, float]], peer_rates: list[float] | None, ve
     return per_round, medians, goals
 
 
-def main() -> None:
-    """Parse the flags, time ours and MiniWorld in alternation, and print the report."""
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command-line flags, every value checked."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
+    harness.add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
     parser.add_argument(
         "--versions", type=int, nargs="+", choices=(0, 1), default=[1], help="room versions, each in every round (1)"
     )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    args = parser.parse_args()
+    return parser.parse_args(argv)
 
-    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
 
-    machine = machine_info()
+def print_header(args: argparse.Namespace, machine: dict) -> None:
+    """The report's first lines: what was timed, on what."""
     print("activeperc env speed vs MiniWorld")
-    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
-    print(f"machine: {cpus}, {machine['processor']}")
+    print(harness.machine_line(machine))
     print(f"         {machine['platform']}, Python {machine['python']}")
     print(
         f"timing:  {args.seconds:g} s per measurement after {args.warmup:g} s warm-up, seed {args.seed};"
-        f" {args.rounds} round(s) of ours (room version {', '.join(map(str, args.versions))} in each),"
-        " MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s) of ours (room version {', '.join(map(str, args.versions))} in each)"
+        + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
     )
     print()
 
+
+def print_breakdown(version: int, parts: dict[str, float]) -> None:
+    """The report's line on where an AEC cycle of room ``version`` goes (:func:`aec_breakdown`'s medians)."""
+    named = " + ".join(f"{label} {parts[part]:.2f}" for part, label in harness.SIMULATOR_PARTS.items())
+    rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {parts['rest']:.2f}"
+    print(f"where a v{version} AEC cycle goes (timed apart, medians): {parts['total']:.2f} ms = {named} + {rest}")
+
+
+def print_ratios(per_round: dict, goals: dict, versions: list[int], cpus: int) -> None:
+    """The report's ratios ours/MiniWorld, every round's, and the goals judged on their medians."""
+    if not per_round:
+        print("ratios and goals: unknown, MiniWorld was not measured")
+        return
+    print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
+    for key, values in per_round.items():
+        print(f"ratio {key:<19}{harness.spread(values, 2, 'x')}")
+    for version in versions:
+        for key, multiple, name in GOALS:
+            met = goals[f"v{version} {name}"]
+            print(f"goal  v{version} {name}: {harness.verdict(met, per_round[f'{key}_v{version}'], multiple, cpus)}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Parse the flags, time ours and MiniWorld in alternation, print the report; return the JSON report."""
+    args = parse_args(argv)
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+
+    machine = harness.machine_info()
+    print_header(args, machine)
     breakdowns = {version: [] for version in args.versions}
 
     def measure(i: int) -> dict[str, float]:
@@ -292,65 +226,53 @@ def main() -> None:
         print(f"round {i + 1}: " + ", ".join(f"{key} {rate:.1f}" for key, rate in ours.items()), flush=True)
         return ours
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads)
+    measured = peer.in_rounds(
+        args.rounds, measure, args.seconds, args.warmup, args.seed, args.peer_lp_threads, skip=args.no_peer
+    )
     rounds, peer_rates = measured.ours, measured.peer
     print()
 
     medians = {key: statistics.median(r[key] for r in rounds) for key in rounds[0]}
-    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
-    print(f"figures: {how}; GL: {machine['gl_renderer']}, LP_NUM_THREADS: {machine['lp_num_threads']}")
+    gl = f"GL: {machine['gl_renderer']}, LP_NUM_THREADS: {machine['lp_num_threads']}"
+    print(f"figures: {harness.of_rounds(args.rounds)}; {gl}")
     for version in args.versions:
         for key, (label, unit) in FIGURES.items():
             print(f"ours  v{version} {label:<34}{medians[f'{key}_v{version}']:9.1f} {unit}")
     print(peer.describe(measured))
     print()
 
-    aec_parts = {}
-    for version in args.versions:
-        aec_parts[version] = {part: statistics.median(b[part] for b in breakdowns[version]) for part in AEC_PARTS}
-        aec_parts[version] |= {key: statistics.median(b[key] for b in breakdowns[version]) for key in ("rest", "total")}
-        parts = " + ".join(f"{label} {aec_parts[version][part]:.2f}" for part, label in AEC_PARTS.items())
-        rest = f"the rest (PettingZoo API, checks, observation dicts, random actions) {aec_parts[version]['rest']:.2f}"
-        print(
-            f"where a v{version} AEC cycle goes (timed apart, medians): {aec_parts[version]['total']:.2f} ms = "
-            f"{parts} + {rest}"
-        )
+    aec_parts = {
+        version: {part: statistics.median(b[part] for b in breakdowns[version]) for part in breakdowns[version][0]}
+        for version in args.versions
+    }
+    for version, parts in aec_parts.items():
+        print_breakdown(version, parts)
     if peer_rates:
         print(f"a MiniWorld step: {1e3 / statistics.median(peer_rates):.2f} ms")
     print()
 
     per_round, ratios, goals = summarise(rounds, peer_rates, args.versions)
-    if ratios:
-        print("ratio ours/MiniWorld, each round over the MiniWorld figures around it: median (rounds)")
-        for key, values in per_round.items():
-            print(f"ratio {key:<19}{harness.spread(values, 2, 'x')}")
-        for version in args.versions:
-            for key, multiple, name in GOALS:
-                verdict = "MET" if goals[f"v{version} {name}"] else "NOT MET"
-                met = harness.rounds_met(per_round[f"{key}_v{version}"], multiple)
-                print(f"goal  v{version} {name}: {verdict} (median; {met})")
-    else:
-        print("ratios and goals: unknown, MiniWorld could not be measured")
-
+    print_ratios(per_round, goals, args.versions, machine["usable_cpus"])
+    report = {
+        "machine": machine,
+        "seconds": args.seconds,
+        "warmup": args.warmup,
+        "seed": args.seed,
+        "versions": args.versions,
+        "rounds": rounds,
+        "ours_cycles_per_s": medians,
+        "aec_ms_per_cycle": aec_parts,
+        "aec_ms_per_cycle_rounds": breakdowns,
+        "miniworld": measured.info,
+        "miniworld_steps_per_s": peer_rates,
+        "miniworld_error": measured.why,
+        "ratio_rounds": per_round,
+        "ratios": ratios,
+        "goals_met": goals,
+    }
     if args.json:
-        report = {
-            "machine": machine,
-            "seconds": args.seconds,
-            "warmup": args.warmup,
-            "seed": args.seed,
-            "versions": args.versions,
-            "rounds": rounds,
-            "ours_cycles_per_s": medians,
-            "aec_ms_per_cycle": aec_parts,
-            "aec_ms_per_cycle_rounds": breakdowns,
-            "miniworld": measured.info,
-            "miniworld_steps_per_s": peer_rates,
-            "miniworld_error": measured.why,
-            "ratio_rounds": per_round,
-            "ratios": ratios,
-            "goals_met": goals,
-        }
         print(json.dumps(report))
+    return report
 
 
 if __name__ == "__main__":

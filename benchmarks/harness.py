@@ -1,15 +1,25 @@
-"""What every speed benchmark shares: the timing loop, the machine's description, checked flags, and ratios of
-rounds (each round of ours over the peer's figures around it)."""
+"""What the benchmark scripts share: timing loops and part timers, the machine's description, checked flags, ratios
+of rounds (each round of ours over the peer's figures around it), CSV output, and our rooms under random actions.
+
+It imports nothing of ours at load time: MiniWorld's child process (``peer.py``) imports it too, and must not
+import ``activeperc_env`` (which sets ``LP_NUM_THREADS`` for its process).
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import csv
+import functools
 import math
 import os
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+# ------------------------------------------------------------------------------------------------------------- timing
 
 
 def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
@@ -29,6 +39,77 @@ def timed_rate(step: Callable[[], int], seconds: float, warmup: float) -> float:
             return units / elapsed
 
 
+SIMULATOR_PARTS = {  # the methods of activeperc_env.Simulator where a cycle's time goes, as the reports name them
+    "move": "physics (Simulator.move)",
+    "look": "look (Simulator.look)",
+    "reset": "resets (Simulator.reset)",
+    "render": "renders (Simulator.render)",
+}
+_ABSENT = object()
+
+
+class Stopwatch:
+    """Seconds spent in named parts of a run, added up by the calls it times (:meth:`timed`, :meth:`watching`)."""
+
+    def __init__(self):
+        self.spent: dict[str, float] = {}
+
+    def restart(self) -> None:
+        """Forget the time spent so far (in a warm-up, say); the parts stay."""
+        self.spent = dict.fromkeys(self.spent, 0.0)
+
+    def timed(self, part: str, function: Callable) -> Callable:
+        """``function``, with the time of each call added to ``part``."""
+        self.spent.setdefault(part, 0.0)
+
+        @functools.wraps(function)
+        def timed_call(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                self.spent[part] += time.perf_counter() - start
+
+        return timed_call
+
+    @contextlib.contextmanager
+    def watching(self, owner: object, names: Iterable[str]) -> Iterator[None]:
+        """Within the block, time each method of ``owner`` (an object or a class) named in ``names`` as the part
+        of its name; after it, ``owner`` is as it was."""
+        kept = {name: vars(owner).get(name, _ABSENT) for name in names}
+        for name in kept:
+            setattr(owner, name, self.timed(name, getattr(owner, name)))
+        try:
+            yield
+        finally:
+            for name, method in kept.items():
+                if method is _ABSENT:
+                    delattr(owner, name)
+                else:
+                    setattr(owner, name, method)
+
+
+def timed_parts(step: Callable[[], int], seconds: float, warmup: float, stopwatch: Stopwatch) -> tuple[float, dict]:
+    """Time ``step`` as :func:`timed_rate` does while ``stopwatch`` times its parts; return the units per second and
+    the seconds per unit spent in each part (the warm-up's time forgotten)."""
+    units = 0
+
+    def counted_step() -> int:
+        nonlocal units
+        done = step()
+        units += done
+        return done
+
+    timed_rate(counted_step, warmup, 0.0)
+    stopwatch.restart()
+    units = 0
+    rate = timed_rate(counted_step, seconds, 0.0)
+    return rate, {part: spent / units for part, spent in stopwatch.spent.items()}
+
+
+# ------------------------------------------------------------------------------------------------------------ machine
+
+
 def machine_info() -> dict:
     """CPU count, platform and Python version of this machine."""
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
@@ -41,6 +122,15 @@ def machine_info() -> dict:
         "mujoco_gl": os.environ.get("MUJOCO_GL", ""),
         "lp_num_threads": os.environ.get("LP_NUM_THREADS", "llvmpipe's default"),
     }
+
+
+def machine_line(machine: dict) -> str:
+    """The report's line on :func:`machine_info`'s CPUs, processor and GL backend."""
+    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
+    return f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}"
+
+
+# -------------------------------------------------------------------------------------------------------------- flags
 
 
 def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callable[[str], int | float]:
@@ -59,17 +149,28 @@ def at_least(kind: type, name: str, low: float, strict: bool = False) -> Callabl
     return convert
 
 
+def add_round_flags(parser: argparse.ArgumentParser, per: str) -> None:
+    """The flags of the rounds, checked: ``--rounds`` of every ``per`` (e.g. 'figure') with MiniWorld timed around
+    each, ``--no-peer`` and ``--peer-lp-threads``."""
+    parser.add_argument(
+        "--rounds", type=at_least(int, "rounds", 1), default=3, help=f"rounds of every {per}, MiniWorld around each (3)"
+    )
+    parser.add_argument("--no-peer", action="store_true", help="do not measure MiniWorld")
+    parser.add_argument(
+        "--peer-lp-threads",
+        type=at_least(int, "peer-lp-threads", 0),
+        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
+    )
+
+
 def add_timing_flags(parser: argparse.ArgumentParser, seconds: float, warmup: float, per: str) -> None:
-    """The flags every env benchmark takes, checked: ``--seconds`` timed per ``per`` (e.g. 'figure'), ``--rounds``
-    with MiniWorld timed around each, ``--warmup`` before each timing and ``--seed``; the given defaults."""
+    """The flags every env benchmark takes, checked: ``--seconds`` timed per ``per`` (e.g. 'figure'), ``--warmup``
+    before each timing, ``--seed`` and the flags of :func:`add_round_flags`; the given defaults."""
     parser.add_argument(
         "--seconds",
         type=at_least(float, "seconds", 0, strict=True),
         default=seconds,
         help=f"timed seconds per {per} ({seconds:g})",
-    )
-    parser.add_argument(
-        "--rounds", type=at_least(int, "rounds", 1), default=3, help=f"rounds of every {per}, MiniWorld around each (3)"
     )
     parser.add_argument(
         "--warmup",
@@ -80,11 +181,10 @@ def add_timing_flags(parser: argparse.ArgumentParser, seconds: float, warmup: fl
     parser.add_argument(
         "--seed", type=at_least(int, "seed", 0), default=0, help="seed of the layouts and the random actions (0)"
     )
-    parser.add_argument(
-        "--peer-lp-threads",
-        type=at_least(int, "peer-lp-threads", 0),
-        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
-    )
+    add_round_flags(parser, per)
+
+
+# ------------------------------------------------------------------------------------------------------------- rounds
 
 
 def bracketed_ratios(ours: list[float], peer: list[float]) -> list[float]:
@@ -102,6 +202,14 @@ def rounds_met(ratios: list[float], multiple: float) -> str:
     return f"met in {sum(ratio >= multiple for ratio in ratios)} of {len(ratios)} rounds"
 
 
+def verdict(met: bool | None, ratios: list[float], multiple: float, cpus: int) -> str:
+    """The report's word on a goal of ``multiple``, ``met`` or not (``None``: unknown) by the median of the rounds'
+    ``ratios``: ``"MET (median; met in k of n rounds; 2 usable CPUs)"``, ``"NOT MET (...)"`` or ``"UNKNOWN"``."""
+    if met is None:
+        return "UNKNOWN"
+    return f"{'MET' if met else 'NOT MET'} (median; {rounds_met(ratios, multiple)}; {cpus} usable CPUs)"
+
+
 def spread(values: list[float], digits: int, unit: str = "") -> str:
     """``"median (v1, v2, ...)"`` with ``digits`` decimals and ``unit`` after each number; the median alone for one
     value."""
@@ -109,3 +217,65 @@ def spread(values: list[float], digits: int, unit: str = "") -> str:
     if len(values) == 1:
         return median
     return f"{median} ({', '.join(f'{v:.{digits}f}{unit}' for v in values)})"
+
+
+def of_rounds(rounds: int) -> str:
+    """What the report's figures are: ``"median of n rounds"``, or ``"one round"``."""
+    return f"median of {rounds} rounds" if rounds > 1 else "one round"
+
+
+# ------------------------------------------------------------------------------------------------------------- output
+
+
+def refuse_unwritable(parser: argparse.ArgumentParser, outputs: dict[str, Path | None]) -> None:
+    """Stop with the parser's error when a path of ``outputs`` ({flag: path or None}) could not be written: before
+    minutes of timing, not after them."""
+    from activeperc_rl.atomic import check_writable
+
+    for flag, path in outputs.items():
+        if path is not None:
+            try:
+                check_writable(path)
+            except ValueError as error:
+                parser.error(f"{flag}: {error}")
+
+
+def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
+    """Write ``rows`` under ``header`` to the CSV file ``path`` (atomically; ``None`` cells are left empty)."""
+    from activeperc_rl.atomic import atomic_path
+
+    with atomic_path(path) as temporary, open(temporary, "w", newline="") as out:
+        writer = csv.writer(out)
+        writer.writerow(header)
+        writer.writerows(["" if cell is None else cell for cell in row] for row in rows)
+
+
+# ---------------------------------------------------------------------------------------------------------- our rooms
+
+
+def random_core(num_envs: int, seed: int, version: int = 1):
+    """A ``Simulator(num_envs)`` of room ``version`` reset from ``seed`` with its first views rendered, and the rng of
+    its actions."""
+    import numpy as np
+
+    import activeperc_env
+
+    sim = activeperc_env.Simulator(activeperc_env.EnvConfig(version=version), num_envs=num_envs)
+    sim.reset(seeds=seed + np.arange(num_envs))
+    sim.render()
+    return sim, np.random.default_rng(seed)
+
+
+def core_cycle(sim, rng) -> None:
+    """One random-action cycle of every room of ``sim``: move, render, look, render (the second render draws only
+    the rooms whose camera turned), then reset and render the finished rooms."""
+    import numpy as np
+
+    sim.move(rng.integers(0, 3, sim.num_envs))
+    sim.render()
+    sim.look(rng.integers(0, 3, sim.num_envs))
+    sim.render()
+    done = np.flatnonzero(sim.done)
+    if done.size:
+        sim.reset(done)
+        sim.render(done)

@@ -151,19 +151,24 @@ def in_rounds(
     warmup: float,
     seed: int,
     lp_threads: int | None = None,
+    skip: bool = False,
 ) -> Rounds:
     """Call ``measure_round(i)`` for ``i`` in ``range(rounds)``, with MiniWorld (``LP_NUM_THREADS=lp_threads``, as
     :class:`MiniWorld` takes it) timed for ``seconds`` (after ``warmup``) before the first round and after each; each
     MiniWorld figure is printed as it comes.
 
-    When MiniWorld cannot start or stops answering, our rounds go on and the result says why.
+    When MiniWorld is skipped (``skip``, the flag ``--no-peer``), cannot start or stops answering, our rounds go on
+    and the result says why.
     """
-    result = Rounds()
-    try:
-        miniworld = MiniWorld(seed, lp_threads)
-        result.info = miniworld.info
-    except PeerUnavailable as error:
-        miniworld, result.peer, result.why = None, None, str(error)
+    result, miniworld = Rounds(), None
+    if skip:
+        result.peer, result.why = None, "skipped (--no-peer)"
+    else:
+        try:
+            miniworld = MiniWorld(seed, lp_threads)
+            result.info = miniworld.info
+        except PeerUnavailable as error:
+            result.peer, result.why = None, str(error)
 
     def time_peer() -> None:
         nonlocal miniworld

@@ -1,16 +1,7 @@
-"""What portable mode costs: training frames/s with torch's CPU kernels as torch picks them and capped at AVX2.
+"""What portable mode costs: training frames/s with torch's CPU kernels as torch picks them, with oneDNN capped at
+AVX2, and with ``--portable``, in rounds of fresh trainings; the digests of their networks say which runs agree.
 
-Each mode trains the same run (``activeperc-train``, seed 0, ``--method``, ``--frames``, no evaluation) in a fresh
-process, in ``--rounds`` rounds of every mode in turn, because the machine's speed drifts over minutes:
-
-- ``default``: torch's own choice (AVX-512 on a CPU that has it);
-- ``onednn``: ``ONEDNN_MAX_CPU_ISA=AVX2`` only (the convolutions' library);
-- ``portable``: ``--portable``, every variable of :data:`activeperc_rl.portable.PINNED_ENVIRONMENT`.
-
-A mode's frames/s is of its iterations after the first (which builds the networks and warms the renderer). The
-report gives every round's frames/s, the median ratio of each mode to ``default`` within a round, and a digest of
-each run's saved networks and optimizers: the runs of one mode agree, and a mode whose digest is another mode's
-trained bit for bit the same run. Run it from the repository root::
+Run it from the repository root::
 
     python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (about 10 minutes)
     python benchmarks/portable_speed.py --method fixed_forward --frames 10000 --rounds 1
@@ -28,12 +19,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import harness
+
+from activeperc_rl.methods import METHODS
 from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
 
-MODES = {  # name: (extra environment, extra flags)
-    "default": ({}, ()),
-    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, ()),
-    "portable": ({}, ("--portable",)),
+MODES = {  # name: (extra environment, extra flags) of activeperc-train
+    "default": ({}, ()),  # torch's own choice (AVX-512 on a CPU that has it)
+    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, ()),  # only the convolutions' library capped
+    "portable": ({}, ("--portable",)),  # every variable of activeperc_rl.portable.PINNED_ENVIRONMENT
 }
 
 
@@ -55,10 +49,13 @@ def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Parse the flags, train every mode in rounds and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--method", default="meta", help="method to train (meta)")
-    parser.add_argument("--frames", type=int, default=20_000, help="frames per run (20000)")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds of every mode (3)")
+    parser.add_argument("--method", choices=METHODS, default="meta", help="method to train (meta)")
+    parser.add_argument(
+        "--frames", type=harness.at_least(int, "frames", 1), default=20_000, help="frames per run (20000)"
+    )
+    parser.add_argument("--rounds", type=harness.at_least(int, "rounds", 1), default=3, help="rounds of every mode (3)")
     args = parser.parse_args(argv)
     import torch
 

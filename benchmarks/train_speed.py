@@ -1,32 +1,5 @@
-"""Training speed of every method against MiniWorld's raw env speed, measured in one run on this machine.
-
-What it measures (networks on ``--device``, the CPU by default; the default
-:class:`~activeperc_rl.config.TrainConfig` but for the method and ``--num-envs``):
-
-1. For each method of ``--methods`` and each collector of ``--collector`` (``inprocess``: this process steps the
-   rooms; ``process`` and ``ray``: ``--workers`` workers per env of TorchRL's multi-process or Ray collector, a
-   local Ray instance on this machine's CPUs): training frames/s, collection and learning together. The method is built
-   with :func:`~activeperc_rl.methods.make_method`, ``--warmup-iters`` iterations run untimed, then
-   :meth:`Method.iterate` runs until ``--seconds`` have passed; the figure is the sum of ``Iteration.frames``
-   (environment cycles over every room of every environment, E1 and E2 both for ``meta``) divided by the wall
-   time of those iterations. The time spent inside the collectors (``Method._next``, wrapped by this script
-   only; it includes the policy's and the in-loop looker's forward passes and the renders) is reported as
-   "collect", the rest of each iteration (losses, backward passes, optimizer steps, soft updates) as "learn".
-   The allocator is set as ``activeperc-train`` sets it (:func:`~activeperc_rl.allocator.keep_freed_memory`).
-2. MiniWorld ``MiniWorld-OneRoom-v0`` at 80x60: raw random-action ``env.step`` calls per second, for ``--seconds``,
-   in a child process (``benchmarks/peer.py``) in this same run.
-3. Each method's frames/s divided by MiniWorld's steps/s, and the goals of the issues: ``meta`` at least 1x
-   MiniWorld's raw env speed on 2 cores (issue 3) and at least 1.5x (issue 4). Both goals are stated for a
-   2-core machine: the header prints how many CPUs this one has.
-
-The methods are timed in ``--rounds`` rounds (3), MiniWorld before the first round and after each, and each
-round's figure is divided by the mean of the two MiniWorld figures around it, because the machine's speed drifts
-over minutes. The report gives each method's median frames/s over the rounds and the median of its per-round
-ratios, with every round's ratio, and judges the goals on the median ratio.
-
-A training frame is one cycle of a room (the mover's move and, in looker mode, the look, each with its render),
-while a MiniWorld step is one action and one render, so the comparison is of training throughput against a bare
-environment loop, as the issues state it.
+"""Training speed of every method against MiniWorld's raw env speed in one run, and with ``--parts`` where each
+method's collection time goes (physics, renders, the networks' forward passes, the rest).
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
 
@@ -34,29 +7,66 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
     python benchmarks/train_speed.py --methods meta --seconds 10 --threads 2
     python benchmarks/train_speed.py --seconds 5 --rounds 1 --json
     python benchmarks/train_speed.py --methods meta --collector inprocess process ray --workers 2
+    python benchmarks/train_speed.py --methods meta --parts --seconds 10 --rounds 1 --no-peer
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
+import contextlib
 import gc
 import json
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # env_speed.py and peer.py sit next to this file
-
-import harness  # noqa: E402 (needs the path above)
-import peer  # noqa: E402
+import harness
+import peer
 
 GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
-    ("issue 3: meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
-    ("issue 4: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
+    ("meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
+    ("stretch: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
 )
-GPU_GOAL = 20_000  # issue 4: meta training frames/s on an H100 with 16 cores
+GPU_GOAL = 20_000  # meta training frames/s on an H100 with 16 cores
+PART_LABELS = harness.SIMULATOR_PARTS | {"forward": "network forward passes (Head.forward)"}
+WIDTH = 24  # of a run's label in the report
+
+
+def collection_parts() -> list[tuple[type, tuple[str, ...]]]:
+    """The classes whose methods ``--parts`` times within the collections, each with those methods' names."""
+    from activeperc_env.core import Simulator
+    from activeperc_rl.models import Head
+
+    return [(Simulator, tuple(harness.SIMULATOR_PARTS)), (Head, ("forward",))]
+
+
+def time_collections(method, stopwatch: harness.Stopwatch, parts: bool) -> None:
+    """Time ``method``'s collections (its ``_next``, wrapped on this instance only) as the part ``collect`` of
+    ``stopwatch`` and, with ``parts``, the methods of :func:`collection_parts` within them: their classes are patched
+    only while a collection runs, so learning's forward passes are not counted."""
+    next_rollout = stopwatch.timed("collect", method._next)
+    owners = collection_parts() if parts else []
+
+    def collect(collector):
+        with contextlib.ExitStack() as watching:
+            for owner, methods in owners:
+                watching.enter_context(stopwatch.watching(owner, methods))
+            return next_rollout(collector)
+
+    method._next = collect
+
+
+def iterate_for(method, seconds: float) -> tuple[int, int, dict, float]:
+    """Run ``method.iterate()`` until ``seconds`` have passed; return the frames, the iterations, the last
+    iteration's losses and the wall time."""
+    frames, iterations = 0, 0
+    start = time.perf_counter()
+    while True:
+        iteration = method.iterate()
+        frames += iteration.frames
+        iterations += 1
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return frames, iterations, iteration.losses, elapsed
 
 
 def bench_method(
@@ -67,15 +77,19 @@ def bench_method(
     device: str = "cpu",
     collect_workers: int = 0,
     collector: str = "process",
+    parts: bool = False,
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
-    ``collect_workers`` and ``collector`` are :attr:`TrainConfig.collect_workers` (workers per environment; their
-    start is not timed) and :attr:`TrainConfig.collector` (``process`` or ``ray``).
+    The method is built as ``activeperc-train`` builds it: the default :class:`~activeperc_rl.config.TrainConfig` but
+    for the method, ``num_envs`` (``None``: the default), ``collect_workers`` (workers per environment; their start is
+    not timed) and ``collector`` (``process`` or ``ray``, for the workers).
 
-    The result holds ``frames_per_s``, ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the
-    timed wall time), ``collect_s`` (time inside the collectors), ``learn_s`` (the rest) and, for
-    ``curriculum``, ``obstacles`` (the obstacle count of the phase that was timed).
+    The result holds ``frames_per_s`` (frames, every room's cycles in every environment, over the timed wall time),
+    ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the timed wall time), ``collect_s`` (time
+    inside the collectors: the rooms, the policy's and the in-loop looker's forward passes), ``learn_s`` (the rest:
+    losses, backward passes, optimizer and soft updates), with ``parts`` ``parts_s`` (seconds in each method of
+    :data:`PART_LABELS` while collecting) and, for ``curriculum``, ``obstacles`` (the timed phase's obstacle count).
     """
     import torch
 
@@ -89,51 +103,32 @@ def bench_method(
     config = TrainConfig(**changes)
     torch.manual_seed(config.seed)
     method = make_method(config, torch_device(device))
-    collect_s = [0.0]
-    next_rollout = method._next  # bound method of the library, wrapped on this instance only
-
-    @functools.wraps(next_rollout)
-    def timed_next(collector):
-        start = time.perf_counter()
-        try:
-            return next_rollout(collector)
-        finally:
-            collect_s[0] += time.perf_counter() - start
-
-    method._next = timed_next
+    stopwatch = harness.Stopwatch()
+    time_collections(method, stopwatch, parts)
     try:
         for _ in range(warmup_iters):
             method.iterate()
-        frames, iterations, losses = 0, 0, {}
-        collect_s[0] = 0.0
-        start = time.perf_counter()
-        while True:
-            iteration = method.iterate()
-            frames += iteration.frames
-            iterations += 1
-            losses = iteration.losses
-            elapsed = time.perf_counter() - start
-            if elapsed >= seconds:
-                break
+        stopwatch.restart()
+        frames, iterations, losses, elapsed = iterate_for(method, seconds)
     finally:
         method.close()
+    collect_s = stopwatch.spent["collect"]
     result = {
         "frames_per_s": frames / elapsed,
         "iterations": iterations,
         "frames": frames,
         "frames_per_iteration": frames / iterations,
         "seconds": elapsed,
-        "collect_s": collect_s[0],
-        "learn_s": elapsed - collect_s[0],
+        "collect_s": collect_s,
+        "learn_s": elapsed - collect_s,
         "num_envs": config.num_envs,
         "rollout_length": config.rollout_length,
     }
+    if parts:
+        result["parts_s"] = {part: stopwatch.spent.get(part, 0.0) for part in PART_LABELS}
     if "curriculum/obstacles" in losses:
         result["obstacles"] = int(losses["curriculum/obstacles"])
     return result
-
-
-WIDTH = 24  # of a run's label in the report
 
 
 def run_label(method: str, collector: str, workers: int) -> str:
@@ -155,8 +150,11 @@ def summarise(rounds: list[dict[str, dict]], peer_rates: list[float] | None):
 
 
 def combine(results: list[dict]) -> dict:
-    """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time."""
+    """One method's figures over its rounds: median frames/s, and the totals of iterations, frames and time (and of
+    each part's time, with ``--parts``)."""
     total = {key: sum(r[key] for r in results) for key in ("iterations", "frames", "seconds", "collect_s", "learn_s")}
+    if "parts_s" in results[0]:
+        total["parts_s"] = {part: sum(r["parts_s"][part] for r in results) for part in results[0]["parts_s"]}
     return (
         results[-1]
         | total
@@ -168,10 +166,9 @@ def combine(results: list[dict]) -> dict:
     )
 
 
-def main() -> None:
-    """Parse the flags, train every method for a while, measure MiniWorld and print the report."""
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command-line flags, every value checked."""
     from activeperc_rl.config import COLLECTORS, DEVICES, TrainConfig
-    from activeperc_rl.envs import torch_device
     from activeperc_rl.methods import METHODS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -222,22 +219,24 @@ def main() -> None:
         help="untimed iterations before each timing (2)",
     )
     parser.add_argument(
-        "--rounds",
-        type=harness.at_least(int, "rounds", 1),
-        default=3,
-        help="rounds of the methods, MiniWorld timed around each (3)",
+        "--parts",
+        action="store_true",
+        help="also time the physics, renders, look, resets and network forward passes within each collection"
+        " (inprocess only)",
     )
-    parser.add_argument(
-        "--peer-lp-threads",
-        type=int,
-        help="LP_NUM_THREADS of MiniWorld's process (default: llvmpipe's own, as MiniWorld's users run it)",
-    )
+    harness.add_round_flags(parser, per="method")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    if args.parts and args.collector != ["inprocess"]:
+        parser.error("--parts times the rooms of this process: it needs --collector inprocess")
+    return args
 
+
+def describe_machine(args: argparse.Namespace) -> dict:
+    """:func:`harness.machine_info` with torch's version and threads (set from ``--threads``), the device, the GPU
+    and the allocator as ``activeperc-train`` sets it."""
     import torch
 
-    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
     from activeperc_rl.allocator import keep_freed_memory
 
     if args.threads:
@@ -247,9 +246,13 @@ def main() -> None:
     machine["keep_freed_memory"] = keep_freed_memory()  # as activeperc-train does
     if torch.cuda.is_available():
         machine["gpu"] = torch.cuda.get_device_name()
+    return machine
+
+
+def print_header(args: argparse.Namespace, machine: dict) -> None:
+    """The report's first lines: what was timed, on what."""
     print("activeperc training speed vs MiniWorld")
-    cpus = f"{machine['usable_cpus']} usable CPUs ({machine['cpu_count']} total)"
-    print(f"machine: {cpus}, {machine['processor']}, MUJOCO_GL={machine['mujoco_gl'] or '(unset)'}")
+    print(harness.machine_line(machine))
     print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
     print(f"         malloc keeps freed memory (activeperc_rl.allocator): {machine['keep_freed_memory']}")
     if "gpu" in machine:
@@ -258,10 +261,73 @@ def main() -> None:
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
         f" networks on {args.device},"
         f" collectors {', '.join(args.collector)} ({args.workers} workers each but inprocess);"
-        f" {args.rounds} round(s), MiniWorld timed before the first and after each"
+        f" {args.rounds} round(s)" + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
     )
     print()
 
+
+def print_run(label: str, result: dict) -> None:
+    """The report's line on one run's frames/s, iterations and the collection's share of them."""
+    collect = result["collect_s"] / result["seconds"]
+    detail = (
+        f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
+        f" (N={result['num_envs']}, T={result['rollout_length']}),"
+        f" collect {collect:.0%} / learn {1 - collect:.0%}"
+    )
+    if "obstacles" in result:
+        detail += f", phase with {result['obstacles']} obstacles"
+    print(f"train {label:<{WIDTH}}{result['frames_per_s']:9.1f} frames/s   {detail}")
+
+
+def print_parts(label: str, result: dict) -> None:
+    """The report's lines on where one run's collection time went (``--parts``): milliseconds per env step (one
+    cycle of every room) in each part."""
+    steps, collect = result["frames"] / result["num_envs"], result["collect_s"]
+    print(f"parts {label}: collection {1e3 * collect / steps:.1f} ms per env step of {result['num_envs']} rooms")
+    rows = [(PART_LABELS[part], spent) for part, spent in result["parts_s"].items()]
+    rows.append(("the rest (TorchRL, tensordict, sampling)", collect - sum(result["parts_s"].values())))
+    for name, spent in rows:
+        print(f"  {name:<40}{1e3 * spent / steps:7.2f} ms per step  ({spent / collect:4.0%})")
+
+
+def print_iteration(label: str, result: dict) -> None:
+    """The report's line on one run's mean iteration: its milliseconds, collection's and learning's."""
+    per_it = result["seconds"] / result["iterations"]
+    collect = result["collect_s"] / result["iterations"]
+    print(
+        f"iter  {label:<{WIDTH}}{per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
+        f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
+    )
+
+
+def print_gain(name: str, label: str, rounds: list[dict[str, dict]]) -> None:
+    """The report's line on how much faster the run ``label`` trained than method ``name`` in this process, round by
+    round."""
+    gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
+    print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
+
+
+def print_ratios(per_round: dict, goals: dict, cpus: int) -> None:
+    """The report's ratios frames/s over MiniWorld's steps/s, every round's, and the goals judged on ``meta``'s."""
+    if per_round:
+        print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
+        for name, values in per_round.items():
+            print(f"ratio {name:<{WIDTH}}{harness.spread(values, 2, 'x')}")
+    else:
+        print("ratios: unknown, MiniWorld was not measured")
+    for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
+        print(f"goal  {goal}: {harness.verdict(met, per_round.get('meta'), multiple, cpus)}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    """Parse the flags, train every method for a while, measure MiniWorld, print the report; return the JSON
+    report."""
+    args = parse_args(argv)
+    import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
+    from activeperc_rl.envs import torch_device
+
+    machine = describe_machine(args)
+    print_header(args, machine)
     runs = [(name, collector) for name in args.methods for collector in args.collector]
 
     def measure(i: int) -> dict[str, dict]:
@@ -270,79 +336,54 @@ def main() -> None:
             label = run_label(name, collector, args.workers)
             workers, backend = (0, "process") if collector == "inprocess" else (args.workers, collector)
             results[label] = bench_method(
-                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend
+                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend, args.parts
             )
             print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()
         return results
 
-    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads)
+    measured = peer.in_rounds(args.rounds, measure, args.seconds, 1.0, 0, args.peer_lp_threads, skip=args.no_peer)
     rounds, peer_rates = measured.ours, measured.peer
     ours = {label: combine([r[label] for r in rounds]) for label in rounds[0]}
     print()
 
-    how = f"median of {args.rounds} rounds" if args.rounds > 1 else "one round"
-    print(f"figures: {how}")
-    for name, result in ours.items():
-        collect = result["collect_s"] / result["seconds"]
-        detail = (
-            f"{result['iterations']} it x {result['frames_per_iteration']:g} frames"
-            f" (N={result['num_envs']}, T={result['rollout_length']}),"
-            f" collect {collect:.0%} / learn {1 - collect:.0%}"
-        )
-        if "obstacles" in result:
-            detail += f", phase with {result['obstacles']} obstacles"
-        print(f"train {name:<{WIDTH}}{result['frames_per_s']:9.1f} frames/s   {detail}")
+    print(f"figures: {harness.of_rounds(args.rounds)}")
+    for label, result in ours.items():
+        print_run(label, result)
     print(peer.describe(measured))
     print()
 
-    if "meta" in ours:
-        meta = ours["meta"]
-        per_it = meta["seconds"] / meta["iterations"]
-        collect = meta["collect_s"] / meta["iterations"]
-        print(
-            f"meta  one iteration: {per_it * 1e3:.0f} ms = collect {collect * 1e3:.0f} ms"
-            f" ({collect / per_it:.0%}) + learn {(per_it - collect) * 1e3:.0f} ms ({1 - collect / per_it:.0%})"
-        )
+    for label, result in ours.items():
+        print_iteration(label, result)
+        if args.parts:
+            print_parts(label, result)
     for name, collector in runs:
-        if collector != "inprocess" and name in ours:  # the same method in this process, round by round
-            label = run_label(name, collector, args.workers)
-            gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
-            print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
+        if collector != "inprocess" and name in ours:
+            print_gain(name, run_label(name, collector, args.workers), rounds)
     per_round, ratios, goals = summarise(rounds, peer_rates)
-    if ratios:
-        print("ratio frames/s over MiniWorld's raw steps/s, each round over the MiniWorld figures around it:")
-        for name, values in per_round.items():
-            print(f"ratio {name:<{WIDTH}}{harness.spread(values, 2, 'x')}")
-    else:
-        print("ratios: unknown, MiniWorld could not be measured")
-    for (goal, multiple), met in zip(GOALS, goals.values(), strict=True):
-        verdict = {True: "MET", False: "NOT MET", None: "UNKNOWN"}[met]
-        if met is not None:
-            met_in = harness.rounds_met(per_round["meta"], multiple)
-            verdict += f" (median; {met_in}; {machine['usable_cpus']} usable CPUs)"
-        print(f"goal  {goal}: {verdict}")
+    print_ratios(per_round, goals, machine["usable_cpus"])
 
     if "gpu" in machine and "meta" in ours and torch_device(args.device).type == "cuda":
         met = ours["meta"]["frames_per_s"] >= GPU_GOAL
         verdict = "MET" if met else "NOT MET"
-        print(f"goal  issue 4: meta >= {GPU_GOAL:,} frames/s on an H100: {verdict} on {machine['gpu']}")
+        print(f"goal  meta >= {GPU_GOAL:,} frames/s on an H100: {verdict} on {machine['gpu']}")
 
+    report = {
+        "machine": machine,
+        "seconds": args.seconds,
+        "warmup_iters": args.warmup_iters,
+        "rounds": args.rounds,
+        "methods": ours,
+        "miniworld": measured.info,
+        "miniworld_steps_per_s": peer_rates,
+        "miniworld_error": measured.why,
+        "ratio_rounds": per_round,
+        "ratios": ratios,
+        "goals_met": goals,
+    }
     if args.json:
-        report = {
-            "machine": machine,
-            "seconds": args.seconds,
-            "warmup_iters": args.warmup_iters,
-            "rounds": args.rounds,
-            "methods": ours,
-            "miniworld": measured.info,
-            "miniworld_steps_per_s": peer_rates,
-            "miniworld_error": measured.why,
-            "ratio_rounds": per_round,
-            "ratios": ratios,
-            "goals_met": goals,
-        }
         print(json.dumps(report))
+    return report
 
 
 if __name__ == "__main__":

@@ -1,25 +1,6 @@
-"""Where one first-person view's time goes, and what leaving the boxes out of sight out of the draw would save.
+"""Where one first-person view's time goes (GL context, state, scene, draw calls, read-back), and what culling the
+boxes out of sight before the draw would save; it reads the renderer's private members.
 
-The views are those of random play in the default room (one room, random moves and looks, new episodes as
-they end). Each is drawn the way ``TiledRenderer.render`` draws one view, in its own pass, and timed in five parts:
-
-- ``context``: the renderer's GL context made current before the view and released after it (every
-  ``TiledRenderer.render`` call does both, so that an env may be stepped from any thread);
-- ``pose``: the room's state loaded into the renderer's ``MjData`` (``mj_kinematics``, ``mj_camlight``);
-- ``scene``: ``mjv_updateScene``, the list of geoms to draw;
-- ``draw``: ``mjr_render``, the GL draw calls (llvmpipe queues the work);
-- ``read``: ``mjr_readPixels``, the read-back, which waits for llvmpipe to finish drawing.
-
-Before the timed views, ``WARM_UP`` views are drawn each way untimed: the first draw in a new context compiles
-llvmpipe's shaders (tens of milliseconds), which would otherwise fall on whichever way drew first.
-
-Every view is also drawn with the room's boxes (walls, goal, occluders) that lie wholly outside the camera's
-view frustum moved to a geom group the view does not draw, which is what per-view culling would do, right before
-or right after the whole draw (each order in half the views). Its pixels must be those of the whole draw (the
-script says whether they are); it reports the same four parts, the boxes drawn per view, and ``cull``, the time
-the visibility test itself took (numpy, per view).
-
-The script reads the renderer's private members (``_pose``, ``_scene``, ...): it measures their work, not an API.
 Run it from the repository root::
 
     python benchmarks/view_profile.py                # 2,000 views
@@ -34,10 +15,18 @@ import json
 import math
 import time
 
+import harness
 import numpy as np
 
-PARTS = ("context", "pose", "cull", "scene", "draw", "read")
-WARM_UP = 20  # untimed views drawn each way first
+PARTS = (  # of one view, as TiledRenderer.render draws it in its own pass
+    "context",  # the GL context made current before the view and released after it (so any thread may step an env)
+    "pose",  # the room's state loaded into the renderer's MjData (mj_kinematics, mj_camlight)
+    "cull",  # the test of which boxes are in view (numpy; culled views only)
+    "scene",  # mjv_updateScene: the list of geoms to draw
+    "draw",  # mjr_render: the GL draw calls (llvmpipe queues the work)
+    "read",  # mjr_readPixels: the read-back, which waits for llvmpipe to finish drawing
+)
+WARM_UP = 20  # untimed views drawn each way first: a new context's first draw compiles llvmpipe's shaders
 MODES = ("whole", "culled")
 CULL_MARGIN = 0.01  # metres: a box counts as out of sight only this far beyond a frustum plane
 
@@ -88,7 +77,9 @@ def random_states(count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def profile(views: int, seed: int) -> dict:
-    """Time every part of :data:`PARTS` for ``views`` views, each drawn whole and culled; compare their pixels."""
+    """Time every part of :data:`PARTS` for ``views`` views of random play, each drawn whole and culled (the boxes,
+    walls, goal and occluders, that lie wholly outside the camera's frustum moved to a geom group the view does not
+    draw, as per-view culling would do), each way first in half the views; compare their pixels."""
     import mujoco
 
     from activeperc_env import Simulator, names
@@ -154,14 +145,14 @@ def profile(views: int, seed: int) -> dict:
 def main(argv: list[str] | None = None) -> dict:
     """Parse the flags, profile the views and print the report; return it."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--views", type=int, default=2000, help="views of random play to draw (2000)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the episodes and the random actions (0)")
+    parser.add_argument(
+        "--views", type=harness.at_least(int, "views", 1), default=2000, help="views of random play to draw (2000)"
+    )
+    parser.add_argument(
+        "--seed", type=harness.at_least(int, "seed", 0), default=0, help="seed of the episodes and random actions (0)"
+    )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args(argv)
-    if args.views < 1:
-        parser.error(f"--views must be >= 1, got {args.views}")
-    if args.seed < 0:
-        parser.error(f"--seed must be >= 0, got {args.seed}")
 
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl)
 

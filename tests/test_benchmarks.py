@@ -1,28 +1,48 @@
 """The benchmark scripts at their tiniest sizes: env_scaling's CSV, plot and memory samples, the breakdowns, MiniWorld's
-child process and the rounds' ratios."""
+child process, the rounds' ratios and the harness's part timers."""
 
 import csv
+import importlib
 import importlib.util
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parent.parent / "benchmarks" / "env_scaling.py"
+BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def benchmarks_on_the_path():
+    """benchmarks/ on ``sys.path``, as it is for a script run from it (benchmarks/ is not a package); its modules
+    forgotten after this file's tests."""
+    sys.path.insert(0, str(BENCHMARKS))
+    yield
+    sys.path.remove(str(BENCHMARKS))
+    for name, module in list(sys.modules.items()):
+        if Path(getattr(module, "__file__", None) or "/").parent == BENCHMARKS:
+            del sys.modules[name]
 
 
 def load_script(name):
-    """A benchmark script as a module (benchmarks/ is not a package)."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPT.with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """A benchmark script or shared module of benchmarks/ as a module."""
+    return importlib.import_module(name)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def env_scaling():
-    """The benchmark script as a module."""
     return load_script("env_scaling")
+
+
+@pytest.fixture
+def peer():
+    return load_script("peer")
+
+
+@pytest.fixture
+def harness():
+    return load_script("harness")
 
 
 def read_csv(path):
@@ -64,7 +84,7 @@ def test_env_scaling_times_the_bare_simulator_in_each_round(env_scaling, tmp_pat
     assert list(tmp_path.iterdir()) == [] and "wrote" not in capsys.readouterr().out
 
     split = report["core_split_s_per_cycle"]
-    assert all(split[part] > 0 for part in ("physics", "render", "cycles_per_s"))
+    assert all(split[part] > 0 for part in ("move", "render", "look", "cycles_per_s"))
     extra = split["torchrl_overhead_rounds"]
     assert len(extra) == 2  # one difference per round, each against that round's TorchRL figure
     assert split["torchrl_overhead"] == pytest.approx(sum(extra) / 2)
@@ -84,6 +104,22 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     assert "seconds must be > 0, got nan" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "script, argv, error",
+    [
+        ("env_speed", ["--rounds", "0"], "rounds must be >= 1, got 0"),
+        ("train_speed", ["--seconds", "0"], "seconds must be > 0, got 0"),
+        ("view_profile", ["--views", "0"], "views must be >= 1, got 0"),
+        ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
+        ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
+    ],
+)
+def test_every_script_refuses_bad_values_before_timing(script, argv, error, capsys):
+    with pytest.raises(SystemExit):
+        load_script(script).main(argv)
+    assert error in capsys.readouterr().err
+
+
 def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scaling, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(env_scaling, "bench_rooms", lambda *args: pytest.fail("timed before checking --csv"))
     with pytest.raises(SystemExit):
@@ -92,7 +128,7 @@ def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scal
 
 
 def test_performance_md_quotes_the_committed_scaling_csv():
-    root = SCRIPT.parent.parent
+    root = BENCHMARKS.parent
     rows = read_csv(root / "benchmarks" / "results" / "env_scaling.csv")
     text = (root / "docs" / "performance.md").read_text()
     table = {}
@@ -106,36 +142,31 @@ def test_performance_md_quotes_the_committed_scaling_csv():
     ]
 
 
-def test_collect_breakdown_times_every_part_and_restores_the_library():
-    from activeperc_env.core import Simulator
-    from activeperc_rl.models import Head
-
-    module = load_script("collect_breakdown")
-    originals = (Simulator.move, Simulator.look, Simulator.render, Head.forward)
-    result = module.breakdown("meta", num_envs=2, iterations=1, warmup_iters=0)
-    assert (Simulator.move, Simulator.look, Simulator.render, Head.forward) == originals
-    assert result["steps"] == 3 * 16  # meta: three rollouts of rollout_length 16
-    parts = [result[label] for label, *_ in module.PARTS if label in result]
-    assert len(parts) >= 4 and all(seconds > 0 for seconds in parts)  # physics, look, renders, networks
-    assert sum(parts) < result["collection"] < result["total"]
-
-
-def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone():
+def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone(harness):
     from activeperc_env.core import Simulator
 
     module = load_script("env_speed")
-    originals = [getattr(Simulator, part) for part in module.AEC_PARTS]
+    originals = [getattr(Simulator, part) for part in harness.SIMULATOR_PARTS]
     result = module.aec_breakdown(seconds=0.5, warmup=0.1, seed=0)
-    assert [getattr(Simulator, part) for part in module.AEC_PARTS] == originals
+    assert [getattr(Simulator, part) for part in harness.SIMULATOR_PARTS] == originals
     assert all(result[part] > 0 for part in ("move", "render", "look"))
     assert 0 < result["rest"] < result["total"]
+
+
+def test_env_speed_reports_every_figure_without_the_peer(capsys):
+    report = load_script("env_speed").main(["--seconds", "0.05", "--warmup", "0", "--rounds", "1", "--no-peer"])
+    assert set(report["rounds"][0]) == {f"{key}_v1" for key in load_script("env_speed").FIGURES}
+    assert all(rate > 0 for rate in report["rounds"][0].values())
+    assert report["miniworld_error"] == "skipped (--no-peer)" and report["goals_met"] == {}
+    out = capsys.readouterr().out
+    assert "where a v1 AEC cycle goes" in out and "ratios and goals: unknown, MiniWorld was not measured" in out
 
 
 def test_env_speed_counts_rooms_and_cycles(monkeypatch):
     """One call of each figure's step, as timed_rate makes them: the core counts its rooms, the AEC env one cycle of
     both agents (each reading its observation first, as a PettingZoo loop does); its GL renderer is named."""
     module = load_script("env_speed")
-    monkeypatch.setattr(module, "timed_rate", lambda step, seconds, warmup: step())
+    monkeypatch.setattr(load_script("harness"), "timed_rate", lambda step, seconds, warmup: step())
     assert module.bench_core(3, seconds=1.0, warmup=0.0, seed=0) == 3
     env, cycle = module.random_aec(seed=0)
     try:
@@ -147,35 +178,50 @@ def test_env_speed_counts_rooms_and_cycles(monkeypatch):
         env.close()
 
 
-@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
-def test_env_speed_times_both_gymnasium_vector_modes(mode):
-    module = load_script("env_speed")
-    assert module.bench_gym_vector(mode, seconds=0.3, warmup=0.05, seed=0) > 0
-
-
-@pytest.fixture(scope="module")
-def peer():
-    """benchmarks/peer.py as a module (registered under its name, as its dataclass needs)."""
-    spec = importlib.util.spec_from_file_location("peer", SCRIPT.with_name("peer.py"))
-    module = importlib.util.module_from_spec(spec)
-    previous = sys.modules.get("peer")
-    sys.modules["peer"] = module
-    spec.loader.exec_module(module)
-    yield module
-    if previous is None:
-        del sys.modules["peer"]
-    else:
-        sys.modules["peer"] = previous
-
-
-def test_each_round_is_divided_by_the_peer_figures_around_it():
-    harness = load_script("harness")
+def test_each_round_is_divided_by_the_peer_figures_around_it(harness):
     assert harness.bracketed_ratios([300.0, 600.0], [100.0, 200.0, 400.0]) == [2.0, 2.0]
     with pytest.raises(ValueError, match="2 peer figures for 2 rounds: expected 3"):
         harness.bracketed_ratios([1.0, 2.0], [1.0, 2.0])
     assert harness.spread([0.5, 0.9, 0.7], 2, "x") == "0.70x (0.50x, 0.90x, 0.70x)"
     assert harness.spread([0.5], 1) == "0.5"
     assert harness.rounds_met([0.9, 1.0, 1.2], 1.0) == "met in 2 of 3 rounds"
+    assert harness.verdict(True, [0.9, 1.0, 1.2], 1.0, 2) == "MET (median; met in 2 of 3 rounds; 2 usable CPUs)"
+    assert harness.verdict(False, [0.9], 1.0, 4) == "NOT MET (median; met in 0 of 1 rounds; 4 usable CPUs)"
+    assert harness.verdict(None, [], 1.0, 2) == "UNKNOWN"
+    assert harness.of_rounds(3) == "median of 3 rounds" and harness.of_rounds(1) == "one round"
+
+
+class Room:
+    def wait(self, seconds):
+        time.sleep(seconds)
+        return seconds
+
+
+def test_the_stopwatch_times_methods_only_within_its_block_and_restores_them(harness):
+    stopwatch, room, wait = harness.Stopwatch(), Room(), Room.wait
+    with stopwatch.watching(Room, ["wait"]):  # a class: every instance's calls
+        assert room.wait(0.02) == 0.02
+    assert Room.wait is wait
+    room.wait(0.2)  # after the block: not timed
+    with stopwatch.watching(room, ["wait"]):  # an instance: the class untouched
+        assert Room.wait is wait and room.wait(0.01) == 0.01
+    assert "wait" not in vars(room)
+    assert 0.03 <= stopwatch.spent["wait"] < 0.2
+    stopwatch.restart()
+    assert stopwatch.spent == {"wait": 0.0}
+
+
+def test_timed_parts_gives_each_parts_seconds_per_unit_after_the_warm_up(harness):
+    stopwatch = harness.Stopwatch()
+    nap = stopwatch.timed("nap", time.sleep)
+
+    def step():  # two units of 5 ms of nap each
+        nap(0.01)
+        return 2
+
+    rate, per_unit = harness.timed_parts(step, seconds=0.2, warmup=0.2, stopwatch=stopwatch)
+    assert 0.005 <= per_unit["nap"] < 0.0075  # the warm-up's naps would double it
+    assert 0.6 < rate * per_unit["nap"] <= 1  # the share of the timed seconds spent napping
 
 
 def test_the_peer_line_gives_every_figure_or_why_there_is_none(peer):
@@ -234,6 +280,9 @@ def test_in_rounds_goes_on_when_the_peer_cannot_start(peer, monkeypatch):
     monkeypatch.setattr(peer, "MiniWorld", cannot_start)
     result = peer.in_rounds(2, lambda i: i, seconds=1.0, warmup=0.0, seed=0)
     assert result.ours == [0, 1] and result.peer is None and result.why == "no GL here"
+    monkeypatch.setattr(peer, "MiniWorld", lambda *args: pytest.fail("MiniWorld started with skip"))
+    result = peer.in_rounds(2, lambda i: i, seconds=1.0, warmup=0.0, seed=0, skip=True)
+    assert result.ours == [0, 1] and result.peer is None and result.why == "skipped (--no-peer)"
 
 
 def test_miniworld_child_process_measures_or_says_why(peer):
@@ -281,6 +330,39 @@ def test_train_speed_combines_a_methods_rounds():
     assert list(goals.values()) == [False, False]
 
 
+def test_train_speed_parts_time_every_part_within_the_collections_and_restore_the_library():
+    from activeperc_env.core import Simulator
+    from activeperc_rl.models import Head
+
+    module = load_script("train_speed")
+    originals = (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward)
+    result = module.bench_method("meta", num_envs=2, seconds=0.01, warmup_iters=0, parts=True)
+    assert (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward) == originals
+    assert result["iterations"] == 1 and result["frames"] == 3 * 16 * 2  # meta: three rollouts of 16 cycles, 2 rooms
+    parts = result["parts_s"]
+    assert list(parts) == list(module.PART_LABELS)
+    assert all(parts[part] > 0 for part in ("move", "look", "render", "forward"))
+    assert sum(parts.values()) < result["collect_s"] < result["seconds"]
+
+
+def test_train_speed_reports_the_parts_of_every_round_without_the_peer(capsys):
+    argv = ["--methods", "fixed_forward", "--num-envs", "2", "--seconds", "0.01", "--warmup-iters", "0"]
+    report = load_script("train_speed").main([*argv, "--rounds", "2", "--no-peer", "--parts"])
+    result = report["methods"]["fixed_forward"]
+    assert len(result["frames_per_s_rounds"]) == 2 and result["iterations"] == 2  # one iteration a round
+    assert result["parts_s"]["render"] > 0 and report["miniworld_error"] == "skipped (--no-peer)"
+    assert set(report["goals_met"].values()) == {None}
+    out = capsys.readouterr().out
+    assert "parts fixed_forward: collection" in out and "the rest (TorchRL, tensordict, sampling)" in out
+    assert "goal  meta >= 1.0x MiniWorld raw env speed on 2 cores: UNKNOWN" in out
+
+
+def test_train_speed_parts_need_the_rooms_in_this_process(capsys):
+    with pytest.raises(SystemExit):
+        load_script("train_speed").main(["--parts", "--collector", "inprocess", "process"])
+    assert "--parts times the rooms of this process" in capsys.readouterr().err
+
+
 def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
     result = load_script("view_profile").profile(views=30, seed=0)
     assert result["same_pixels"] and result["boxes"] == 8  # four walls, the goal, three occluders
@@ -303,7 +385,7 @@ def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
 
 def test_training_md_shows_the_committed_portable_speed_table():
     """docs/training.md's table is the one benchmarks/results/cpu2/portable_speed.txt holds (regenerate both)."""
-    root = SCRIPT.parents[1]
+    root = BENCHMARKS.parent
     text = (root / "docs" / "training.md").read_text()
     block = text.split("<!-- portable: begin -->")[1].split("<!-- portable: end -->")[0]
     committed = (root / "benchmarks" / "results" / "cpu2" / "portable_speed.txt").read_text()
