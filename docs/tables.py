@@ -180,6 +180,196 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
     return outcomes
 
 
+BENCH = "benchmarks/results"
+GOAL_COLUMNS = {  # (room, MiniWorld's llvmpipe setting): header
+    ("v1", "as it ships"): "v1 against MiniWorld as it ships",
+    ("v1", "LP_NUM_THREADS=0"): "v1 against MiniWorld with `LP_NUM_THREADS=0` too",
+    ("v0", "as it ships"): "v0 (as it ships)",
+}
+
+
+def runs_footer(rows: list[dict]) -> str:
+    """The commands, machines and dates of benchmark rows, each once, with the output they printed."""
+    seen = dict.fromkeys(
+        f"`{r['command']}` ({r['machine']}, {r['date']}" + (f"; `{r['output']}`" if r.get("output") else "") + ")"
+        for r in rows
+    )
+    return "\n" + "Commands: " + "; ".join(seen) + ".\n"
+
+
+def times(value: str) -> str:
+    """A ratio as the benchmarks print it: ``1.30x``."""
+    return f"{float(value):.2f}x"
+
+
+def goal_cell(row: dict | None) -> str:
+    """A goal's ratio (bold for v1 as MiniWorld ships), its rounds, and the rates it is the ratio of."""
+    if row is None:
+        return "not run"
+    ratio = times(row["ratio"])
+    ratio = f"**{ratio}**" if (row["room"], row["peer"]) == ("v1", "as it ships") else ratio
+    details = [", ".join(map(times, row["rounds"].split()))] if row["rounds"] else []
+    if row["ours"]:
+        against = f" against {int(row['miniworld']):,} steps/s" if row["miniworld"] else ""
+        details.append(f"{int(row['ours']):,} {row['unit']}{against}")
+    details += [row["note"]] if row["note"] else []
+    return ratio + (f" ({'; '.join(details)})" if details else "")
+
+
+def goals() -> str:
+    """The 2-core goals: each goal against MiniWorld as it ships and with its llvmpipe set as ours, and in v0."""
+    rows = read(f"{BENCH}/cpu2/goals.csv")
+    cells = {(r["goal"], r["room"], r["peer"]): r for r in rows}
+    lines = [
+        [goal] + [goal_cell(cells.get((goal, *column))) for column in GOAL_COLUMNS]
+        for goal in dict.fromkeys(r["goal"] for r in rows)
+    ]
+    return markdown(["goal (2 CPU cores)", *GOAL_COLUMNS.values()], lines) + runs_footer(rows)
+
+
+def rooms_table(path: str) -> str:
+    """Cycles/s of the TorchRL env by number of rooms (and against MiniWorld where it was timed)."""
+    rows = read(path)
+    lines = [["cycles/s (summed over rooms)"] + [f"{float(r['cycles_per_s']):,.0f}" for r in rows]]
+    if rows[0]["miniworld_steps_per_s"]:
+        peer = f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"
+        lines.append([peer] + [f"{float(r['ratio']):.2f}" for r in rows])
+    return markdown(["rooms N"] + [r["num_envs"] for r in rows], lines)
+
+
+def env_memory() -> str:
+    """Resident memory over the committed memory run: first and last sample, the largest, the rise after 128."""
+    rows = read(f"{BENCH}/env_memory.csv")
+    mib = [float(r["rss_mib"]) for r in rows]
+    after = mib[-1] - next(float(r["rss_mib"]) for r in rows if r["episodes"] == "128")
+    cells = [f"{int(rows[-1]['episodes']):,}", f"{mib[0]:.1f} → {mib[-1]:.1f}", f"{max(mib):.1f}", f"{after:.1f}"]
+    return markdown(["episodes", "resident MiB, first → last", "largest", "rise after episode 128"], [cells])
+
+
+def view_profile() -> str:
+    """Microseconds per view, step by step."""
+    rows = read(f"{BENCH}/cpu2/view_profile.csv")
+    steps = ["context", "pose", "cull", "scene", "draw", "read", "total"]
+    header = [
+        "",
+        "GL context made current and released",
+        "state loaded",
+        "cull (none)",
+        "scene listed",
+        "draw calls",
+        "read-back",
+        "total",
+    ]
+    return markdown(header, [[r["run"]] + [r[step] for step in steps] for r in rows]) + runs_footer(rows)
+
+
+def llvmpipe_threads() -> str:
+    """Rates with llvmpipe drawing in the calling thread and with its threads, and the change."""
+    rows = read(f"{BENCH}/cpu2/llvmpipe_threads.csv")
+    lines = [
+        [
+            r["figure"],
+            f"{float(r['lp0']):,.0f}",
+            f"{float(r['default']):,.0f}",
+            f"{(float(r['lp0']) / float(r['default']) - 1) * 100:+.0f} %",
+        ]
+        for r in rows
+    ]
+    return markdown(["", "`LP_NUM_THREADS=0`", "default", "change"], lines) + runs_footer(rows)
+
+
+def gym_vector() -> str:
+    """Our batched vector env against Gymnasium's sync one, round by round."""
+    rows = read(f"{BENCH}/cpu2/gym_vector.csv")
+    lines = [
+        [
+            r["round"],
+            f"{int(r['ours']):,}",
+            f"{int(r['sync']):,}",
+            times(int(r["ours"]) / int(r["sync"])),
+            times(r["ours_over_miniworld"]),
+        ]
+        for r in rows
+    ]
+    header = ["round", "ours, steps/s", "sync, steps/s", "ours / sync", "ours / MiniWorld"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def train_methods() -> str:
+    """Each method's training frames/s, against MiniWorld, and the split of an iteration."""
+    rows = read(f"{BENCH}/cpu2/train_methods.csv")
+    lines = [
+        [
+            f"`{r['method']}`" + (f" ({r['note']})" if r["note"] else ""),
+            f"{int(r['frames_per_s']):,}",
+            f"{r['ratio']} ({', '.join(r['rounds'].split())})",
+            f"{r['collect']} % / {r['learn']} %",
+        ]
+        for r in rows
+    ]
+    header = ["method", "frames/s (median)", "x MiniWorld: median (rounds)", "collect / learn"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def collectors() -> str:
+    """`meta`'s frames/s with each collector, against in-process collection and against MiniWorld."""
+    rows = read(f"{BENCH}/cpu2/collectors.csv")
+    lines = [
+        [
+            r["collector"],
+            r["frames_per_s"],
+            (times(r["gain"]) + f" ({', '.join(map(times, r['gain_rounds'].split()))})") if r["gain_rounds"] else "1",
+            times(r["ratio"]),
+        ]
+        for r in rows
+    ]
+    header = ["collector", "frames/s", "against in-process, per round", "against MiniWorld's raw steps/s"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def workers_allocator() -> str:
+    """Pairs of runs in one process and with 2 collection workers, with the allocator that keeps freed memory."""
+    rows = read(f"{BENCH}/cpu2/workers_allocator.csv")
+    lines = [
+        [
+            f"{r['rooms']} (pair {r['pair']})",
+            r["in_process"],
+            f"{r['workers']} ({(int(r['workers']) / int(r['in_process']) - 1) * 100:+.0f} %)",
+            f"{int(r['collect_in_process']):,} -> {int(r['collect_workers']):,} ms",
+            f"{int(r['learn_in_process']):,} -> {int(r['learn_workers']):,} ms",
+        ]
+        for r in rows
+    ]
+    header = [
+        "rooms",
+        "in-process, frames/s",
+        "2 workers, frames/s",
+        "collection per iteration",
+        "learning per iteration",
+    ]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def h100_train() -> str:
+    """Training frames/s on the H100 machine by number of rooms (collection's share of a `meta` iteration)."""
+    rows = read(f"{BENCH}/h100/train.csv")
+
+    def rate(value, share=""):
+        return f"{int(value):,}" + (f" ({share} %)" if share else "") if value else ""
+
+    lines = [
+        [
+            r["rooms"] + (" (the default)" if r["rooms"] == "16" else ""),
+            rate(r["meta_gpu"], r["meta_gpu_collect"]),
+            rate(r["fixed_forward_gpu"]),
+            rate(r["meta_cpu"], r["meta_cpu_collect"]),
+        ]
+        for r in rows
+    ]
+    header = ["rooms", "`meta`, networks on the GPU", "`fixed_forward`, GPU", "`meta`, networks on the CPU"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
 SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
     "room-v1-baselines": (
@@ -196,6 +386,17 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "looker-ablations": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker_ablations.csv"))),
     "h100-long": ("reproduction.md", h100_long),
     "importance-weights": ("reproduction.md", importance_weights),
+    "goals": ("performance.md", goals),
+    "view-profile": ("performance.md", view_profile),
+    "llvmpipe-threads": ("performance.md", llvmpipe_threads),
+    "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
+    "env-memory": ("performance.md", env_memory),
+    "gym-vector": ("performance.md", gym_vector),
+    "train-methods": ("performance.md", train_methods),
+    "collectors": ("performance.md", collectors),
+    "workers-allocator": ("performance.md", workers_allocator),
+    "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
+    "h100-train": ("performance.md", h100_train),
 }
 
 

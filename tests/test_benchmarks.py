@@ -91,21 +91,6 @@ def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scal
     assert f"--csv: {str(tmp_path)!r} is a directory" in capsys.readouterr().err
 
 
-def test_performance_md_quotes_the_committed_scaling_csv():
-    root = SCRIPT.parent.parent
-    rows = read_csv(root / "benchmarks" / "results" / "env_scaling.csv")
-    text = (root / "docs" / "performance.md").read_text()
-    table = {}
-    for line in text.splitlines():
-        cells = [c.strip() for c in line.strip("|").split("|")]
-        table[cells[0]] = cells[1:]
-    assert table["rooms N"] == [row["num_envs"] for row in rows]
-    assert table["cycles/s (summed over rooms)"] == [f"{float(row['cycles_per_s']):,.0f}" for row in rows]
-    assert table[f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"] == [
-        f"{float(row['ratio']):.2f}" for row in rows
-    ]
-
-
 def test_collect_breakdown_times_every_part_and_restores_the_library():
     from activeperc_env.core import Simulator
     from activeperc_rl.models import Head
