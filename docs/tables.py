@@ -370,7 +370,22 @@ def h100_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
+def train_flags() -> str:
+    """``activeperc-train``'s flags as its ``--help`` gives them: each flag, its default and its meaning."""
+    from activeperc_rl.cli import build_parser
+
+    rows = []
+    for action in build_parser()._actions:
+        if action.dest == "help":
+            continue
+        meaning, given, default = action.help.replace("%%", "%").partition(" (default: ")
+        default = f"`{default.removesuffix(')')}`" if given else "off" if action.nargs == 0 else "none"
+        rows.append([", ".join(f"`{flag}`" for flag in action.option_strings), default, meaning])
+    return markdown(["flag", "default", "meaning"], rows)
+
+
 SECTIONS = {  # marker: (document in docs/, the function that makes its table)
+    "train-flags": ("training.md", train_flags),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
     "room-v1-baselines": (
         "training.md",
