@@ -180,6 +180,32 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
     return outcomes
 
 
+def goal_visibility() -> str:
+    """How often the goal is hidden at the start, as ``experiments/goal_visibility.py --csv`` wrote it."""
+
+    def share(count: str, row: dict) -> str:
+        return f"{int(count) / int(row['seeds']):.1%} ({count}/{row['seeds']})" if count else "-"
+
+    rows = [
+        [
+            f"{float(r['fov']):g}",
+            r["num_obstacles"] + (" (default)" if r["num_obstacles"] == "3" else ""),
+            share(r["hidden_forward"], r),
+            share(r["hidden_every_pan"], r),
+            share(r["outside_view_cone"], r),
+        ]
+        for r in read("experiments/results/goal_visibility.csv")
+    ]
+    header = [
+        "FOV (deg)",
+        "occluders",
+        "hidden, camera forward",
+        "hidden at every pan angle",
+        "geometry: goal outside the forward view cone",
+    ]
+    return markdown(header, rows)
+
+
 BENCH = "benchmarks/results"
 GOAL_COLUMNS = {  # (room, MiniWorld's llvmpipe setting): header
     ("v1", "as it ships"): "v1 against MiniWorld as it ships",
@@ -386,6 +412,7 @@ def train_flags() -> str:
 
 SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "train-flags": ("training.md", train_flags),
+    "goal-visibility": ("env.md", goal_visibility),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
     "room-v1-baselines": (
         "training.md",
