@@ -18,10 +18,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 FIG1 = "experiments/fig1/results"
-sys.path.insert(0, str(ROOT / "experiments" / "fig1"))  # the sweep's own table makers
+sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  # the scripts' own table makers
 
 from aggregate import mean_ci, replace_between, summary_table, with_reference  # noqa: E402
 from looker_stats import markdown_table  # noqa: E402
+from value_of_looking import read_csv as read_looking  # noqa: E402
+from value_of_looking import table as looking_table  # noqa: E402
 
 
 def read(path: str) -> list[dict]:
@@ -178,6 +180,12 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
                 "phi2": row["phi2"],
             }
     return outcomes
+
+
+def portable_speed() -> str:
+    """The table ``benchmarks/portable_speed.py`` printed into its committed output."""
+    text = (ROOT / "benchmarks/results/cpu2/portable_speed.txt").read_text()
+    return "".join(line + "\n" for line in text.splitlines() if line.startswith("|"))
 
 
 def goal_visibility() -> str:
@@ -413,6 +421,11 @@ def train_flags() -> str:
 SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "train-flags": ("training.md", train_flags),
     "goal-visibility": ("env.md", goal_visibility),
+    "value-of-looking": (
+        "env.md",
+        lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking.csv")) + "\n",
+    ),
+    "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
     "room-v1-baselines": (
         "training.md",
