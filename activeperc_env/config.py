@@ -84,7 +84,7 @@ class EnvConfig:
     """The robot starts facing within this many degrees of the goal's bearing (180: any way at all)."""
     goal_distance: float | None = None
     """Distance along the room (x) between the robot's start and the goal, in metres (2.5 to 4.6; the room is 6 m
-    long): each is drawn within 0.3 m of -+goal_distance / 2, their y anywhere but 0.5 m from the side walls."""
+    long)."""
     max_cycles: int | None = None
     """Cycles (one move and one look each) before the episode is truncated."""
     pan_range: float = 120.0
@@ -92,23 +92,22 @@ class EnvConfig:
     pan_step: float = 30.0
     """Degrees the camera turns for one 'pan left' or 'pan right' action."""
     control_hz: float = 5.0
-    """Mover decisions per simulated second; each move drives the base for 1/control_hz s, a whole number of the
-    version's physics steps (20 ms in v1: 50 / k Hz; 5 ms in v0: 200 / k Hz)."""
+    """Mover decisions per simulated second; a period must be a whole number of the version's physics steps
+    (50 / k Hz in v1 and v2, 200 / k Hz in v0)."""
     forward_speed: float = 0.75
     """Speed of the 'forward' action, in m/s (in v0 the wheels' rim speed)."""
     turn_speed: float | None = None
     """Yaw rate of 'turn left' and 'turn right', in degrees per second."""
     range_rays: int | None = None
     """Rays of the range sensor (the observation's 'range'; 0: none), spread evenly from -90 to +90 degrees of the
-    heading (one ray: straight ahead); they meet walls and occluders, never the goal."""
+    heading; they meet walls and occluders, never the goal."""
     range_max: float = 2.0
     """Distance at which the range sensor's rays stop, in metres: a ray that meets nothing reads range_max."""
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
     version: int = 1
-    """The room's version: 1; 2, v1 without hints of where the goal lies; or 0, the paper-faithful room of the Figure 1
-    pilot (docs/env.md, Version History). It picks the robot, its physics, how layouts are drawn and the defaults
-    shown per version."""
+    """The room's version: 1; 2 (v1 without hints of where the goal lies); or 0 (the paper-faithful room of the
+    Figure 1 pilot)."""
 
     def __post_init__(self) -> None:
         if not (is_int(self.version) and self.version in VERSIONS):  # first: the other defaults depend on it

@@ -33,7 +33,7 @@ LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
-MAX_ENVS = 2**16  # the most rooms one simulator holds (a room takes about 0.6 MB, its view included)
+MAX_ENVS = 2**16  # the most rooms one simulator holds
 STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what every state of get_state holds
 OUTCOME_KEYS = ("success", "episode_return")  # what get_state holds too; states saved before them lack them
 

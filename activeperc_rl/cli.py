@@ -27,7 +27,9 @@ from activeperc_rl.config import (
     COLLECTORS,
     DEVICES,
     E1_LOOKS,
+    LOOKER_CREDITS,
     MOVER_ROLLOUTS,
+    OPTIMIZERS,
     TrainConfig,
     load_yaml,
 )
@@ -41,6 +43,8 @@ CHOICES = {
     "collector": COLLECTORS,
     "mover_rollouts": MOVER_ROLLOUTS,
     "e1_looks": E1_LOOKS,
+    "looker_credit": LOOKER_CREDITS,
+    "looker_optimizer": OPTIMIZERS,
     "looker_reward": LOOKER_REWARDS,
     "version": VERSIONS,
 }

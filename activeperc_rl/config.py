@@ -52,30 +52,23 @@ class TrainConfig:
     device: str = "auto"
     """Where the models run: 'cpu', 'cuda', or 'auto' (cuda when available)."""
     torch_threads: int = 1
-    """Threads of torch's CPU ops (0: torch's default). 1 leaves the other cores to the physics and the software
-    renderer; on 2 cores it measured faster than torch's default and far faster when the machine is busy."""
+    """Threads of torch's CPU ops while collecting (0: torch's default); 1 leaves the other cores to the physics
+    and the renderer."""
     learner_threads: int = 0
-    """Threads of torch's CPU ops during the updates (0: every CPU this process may use). The environments wait
-    while the networks learn, so the updates may use every core; on 2 cores this cut a meta iteration's learning
-    from 725 to 507 ms (docs/training.md). The thread count may change float rounding in the updates, so a CPU
-    run repeats exactly with the same learner_threads (with the default networks, 1 and 2 threads gave the same
-    runs in our checks)."""
+    """Threads of torch's CPU ops during the updates (0: every CPU this process may use); a CPU run repeats
+    exactly only with the same value."""
     portable: bool = False
-    """Pin torch's CPU kernels to AVX2 (activeperc_rl/portable.py), so that the same config and seed train the same
-    run on any x86-64 CPU with AVX2 of the same vendor, not only on the same kind of CPU; it costs speed
-    (docs/training.md)."""
+    """Pin torch's CPU kernels to AVX2, so that a config and seed train the same run on any x86-64 CPU with AVX2
+    of one vendor; it costs speed."""
     collect_workers: int = 0
-    """Workers that step each environment's rooms (0: this process steps them). With k > 0, E1 and E2 each split
-    their num_envs rooms over k workers of TorchRL's collectors (see collector) that collect at once with the
-    weights of the moment (activeperc_rl/collection.py); the networks learn in this process on device. The
-    layouts are those of k = 0; the sampled actions come from the workers' own seeded streams, so a run repeats
-    itself with the same k but differs from a run with another k (docs/training.md)."""
+    """Workers that step each environment's rooms (0: this process steps them); another number of workers
+    trains another run."""
     collector: str = "process"
-    """Where the collect_workers run: 'process' (TorchRL's multi-process collector on this machine) or 'ray'
-    (TorchRL's Ray collector, on ray_address; num_envs must split evenly over the workers)."""
+    """Where the collect_workers run: 'process' (this machine) or 'ray' (on ray_address; num_envs must split evenly
+    over the workers)."""
     ray_address: str = "local"
-    """The Ray cluster the 'ray' collector joins ('auto': the one this machine is in, or the head's 'HOST:6379');
-    'local' starts a Ray instance of the run's own on this machine's cores."""
+    """The Ray cluster the 'ray' collector joins: 'local' (a Ray instance of the run's own), 'auto' (the one this
+    machine is in) or the head's 'HOST:6379'."""
     gamma: float = 0.99
     """Discount factor of the mover's (and IA2C looker's) A2C."""
     gae_lambda: float = 0.95
@@ -83,19 +76,12 @@ class TrainConfig:
     lr: float = 7e-4
     """Adam learning rate of the mover's actor and critic (and of the joint agent)."""
     looker_lr: float = 3e-5
-    """Adam learning rate of the looker (phi2 for 'meta', the looker's actor-critic for 'ia2c'). Until the
-    mover's critic tells rooms apart, the meta-evaluator is noise with a small bias, which Adam turns into
-    full-size steps: at 3e-4 phi2 collapsed onto one pan within 125k frames in one of three seeds, pinning
-    E1's camera at the pan limit; at 3e-5 it stayed near its start over 300k frames in all three."""
+    """Adam learning rate of the looker (phi2 for 'meta', the looker's actor-critic for 'ia2c')."""
     entropy_coeff: float = 0.01
     """Weight of the entropy bonus in the mover's A2C loss (for the joint agent, of its move's entropy)."""
     looker_entropy_coeff: float = 0.0
-    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C; the joint agent's
-    look, given its move). Until the
-    critic tells rooms apart it is phi2's only steady gradient, and Adam makes full-size steps of it: at 0.01
-    phi2's entropy rose from 0.23 to 0.85 (1.10 is uniform) within about 30k frames, and phi1's argmax (E1's
-    looks) panned in 5-30 % of E1's cycles from 50k frames on, before the mover had learned anything. E2
-    explores by epsilon instead."""
+    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C; the joint
+    agent's look, given its move)."""
     critic_coeff: float = 0.5
     """Weight of the critic's loss in the A2C loss."""
     max_grad_norm: float = 0.5
@@ -105,42 +91,27 @@ class TrainConfig:
     alpha: float = 0.05
     """'meta': soft-update rate, phi1 <- alpha phi2 + (1 - alpha) phi1 (the paper's 0.05)."""
     shared_seeds: bool = True
-    """'meta': E1 and E2 get the same layout streams: room i's k-th episode is the same layout in both, so the
-    meta-evaluator compares the two looker policies on the same population of rooms (matched by episode index,
-    not by iteration: episodes end at different times in E1 and E2)."""
+    """'meta': E1 and E2 get the same layout streams (room i's k-th episode is the same layout in both)."""
     resample_d1: bool = True
     """'meta': sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per
     iteration); False reuses the first D1 (2 rollouts per iteration)."""
     looker_hold_prob: float = 0.95
     """Probability that an untrained looker holds the camera (phi1 and phi2, the IA2C looker, the joint agent's
-    look): its output layer starts at zero weights and a bias on 'hold', so E2's greedy look starts by holding
-    instead of the one look a random init prefers in nearly every view (experiments/untrained_looker.py).
-    1/3 makes every look equally likely (argmax then picks 'pan left'); the paper does not say."""
+    look); 1/3 makes every look equally likely."""
     e1_looks: str = "greedy"
-    """'meta': how phi1 picks its looks in E1 and at test time. 'greedy': argmax of phi1, as E2 picks phi2's looks
-    when it does not explore, so E1 and E2 differ only in phi2's parameters and E2's exploration, and an untrained
-    phi1 holds the camera forward (E1 starts as Fixed_Forward). 'sample': draw from phi1's distribution; untrained,
-    it pans on 1 - looker_hold_prob of the cycles, a random walk that leaves the camera off to the side for most
-    of an episode. The paper does not say."""
+    """'meta': how phi1 picks its looks in E1 and at test time: 'greedy' (its argmax) or 'sample' (drawn from its
+    distribution)."""
     mover_rollouts: str = "all"
-    """'meta': the rollouts the mover learns from. 'all': first an A2C step on the first D1 and D2 together (after
-    the meta step, which reads w1 as the paper does), then one on the D1 sampled after the soft update; every
-    step is on-policy, and the mover learns from every frame, as the baselines' movers do. 'd1' (the paper):
-    only the step on the new D1, a third of the frames."""
+    """'meta': what the mover learns from: 'all' (the first D1 and D2, then the D1 sampled after the soft
+    update) or 'd1' (the paper: that D1 only)."""
     looker_importance_weights: bool = False
-    """'meta': weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it. The
-    paper does not (False): its gradient then has the bias mean(M) * (b - pi_phi2) on phi2's logits, so while E2
-    scores below E1 on average, every look E2 explores more often than phi2 would take it is pushed down
-    (activeperc_rl/losses.py)."""
+    """'meta': weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it
+    (the paper does not)."""
     looker_credit: str = "trajectory"
-    """'meta': what each look of D2 is credited with in phi2's REINFORCE step. 'trajectory' (the paper): its
-    trajectory's meta-evaluator M(tau_k) against E1's baseline. 'look': the value difference the look made,
-    V_w2(s') - V_w2(s_bar), the mover's critic on the view after the look and on the view before it, in the same
-    state of the room (0 for 'hold'). 'every_look': E2 also renders what the other looks would have shown, the
-    critic values all three, and phi2 follows the expected gradient over them (activeperc_rl/losses.py)."""
+    """'meta': what each look of D2 is credited with: 'trajectory' (the paper: its trajectory's meta-evaluator),
+    'look' (the value the look added, V(s') - V(s_bar)) or 'every_look' (expected over the three looks' values)."""
     looker_optimizer: str = "adam"
-    """'meta': phi2's optimizer, 'adam' or 'sgd'. Adam takes steps of looker_lr whatever the size of the gradient,
-    so a meta-evaluator that is still noise moves phi2 as far as one that knows; SGD's steps grow with it."""
+    """'meta': phi2's optimizer, 'adam' or 'sgd' (whose steps grow with the meta-evaluator's size)."""
     curriculum_fraction: float = 0.3
     """'curriculum': fraction of the frames spent pre-training the joint agent in a room without obstacles."""
     channels: tuple[int, ...] = (16, 32)
@@ -149,17 +120,15 @@ class TrainConfig:
     """Width of the encoder's output and of the heads' input."""
     bearing_bins: int = 0
     """Bins of the mover's bearing layout (0: none): its networks (and the joint agent's) lay the view's features
-    out by bearing from the robot's heading, pan included, so a goal seen to the left lands in the same features
-    wherever the camera looks (activeperc_rl/models.py). The lookers' networks see the view as it is."""
+    out by bearing from the robot's heading, wherever the camera looks."""
     success_window: int = 100
-    """Finished episodes the logged success rate and mean return are averaged over (progress bar, metrics.csv,
-    TensorBoard)."""
+    """Finished episodes the logged success rate and mean return are averaged over."""
     checkpoint_every: float = 60.0
     """Seconds between checkpoints (one is also written as the run starts, at the end and on Ctrl-C, SIGTERM or
     SIGHUP)."""
     eval_episodes: int = 100
-    """Held-out episodes evaluated at the end of training (for the learned policy, its mover with the camera held
-    forward where a looker turns it, and a random policy); 0 skips it."""
+    """Held-out episodes evaluated at the end of training, for the learned, the camera-held and a random policy
+    (0: none)."""
     env: EnvConfig = field(default_factory=EnvConfig)
     """The environment (the same for E1 and E2 and for evaluation)."""
 

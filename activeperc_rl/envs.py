@@ -1,88 +1,6 @@
-"""TorchRL environment: the mover's batched env, with the looker inside its transition.
+"""TorchRL environment: the mover's batched env, with the looker inside its transition (one step is one cycle).
 
-Design
-------
-One :class:`~activeperc_env.Simulator` holds all ``num_envs`` rooms and is stepped as a whole by
-one :class:`~torchrl.envs.EnvBase` with ``batch_size=[num_envs]``: a ``PettingZooWrapper`` per
-room inside a ``ParallelEnv`` costs about 1 ms of wrapper overhead per agent step plus a process
-per room, while the simulator steps and renders a whole batch in one call.
-
-The paper's mover lives in the MDP whose transition is ``P~ = P^c pi^c P^m`` (eq. 1): the
-looker's policy is part of the mover's environment, and E1 and E2 are the same simulator with a
-different perceptual policy in the loop. So ``step`` takes the mover's action and runs the
-looker inside the cycle::
-
-    move(u_m) -> render s_bar -> looker module -> look(u_c) -> render s'
-
-A mover rollout in E1 or E2 is then an ordinary single-agent TorchRL rollout (``Collector``, GAE
-and A2C apply unchanged) and the looker's part of each cycle (``s_bar``, ``u_c``, its
-log-probability) is recorded next to it. The alternative, two turns per cycle with agent masks,
-doubles the steps and forces masking into every loss; the PettingZoo AEC env keeps that form
-for everyone else.
-
-Contract
---------
-Keys are grouped per agent; done flags are shared, at the root (shape ``(..., 1)``)::
-
-    ("mover", "observation", "image")  uint8 (H, W, 3)   s: the mover's view (after the look)
-    ("mover", "observation", "pan")    float32 (1,)      camera pan, radians
-    ("mover", "observation", "range")  float32 (K,)      range sensor, metres (v1; absent where range_rays is 0)
-    ("mover", "action")                int64 ()          Categorical(3): turn left/right, forward
-    ("mover", "reward"), ("looker", "reward")  float32 (1,)
-    ("mover", "episode_success")       bool (1,)         the robot reached the goal (False while the episode runs)
-    ("mover", "episode_return")        float32 (1,)      the mover's rewards summed over the episode so far
-    "done", "terminated", "truncated"  bool (1,)
-
-Where ``("next", "done")`` is set, ``("next", "mover", "episode_success")`` and ``("next", "mover",
-"episode_return")`` are the episode's outcome; they are observation entries (as TorchRL's ``RewardSum`` writes its
-``episode_reward``), so a reset sets them to False and 0.
-
-*Looker mode* (a looker module is set, at construction or with :meth:`ActivePerceptionEnv.set_looker`):
-the module is called on a tensordict holding ``("looker", "observation", "image"/"pan")`` (``s_bar``,
-on ``device``) and must write ``("looker", "action")`` (integer, shape ``(n,)`` or ``(n, 1)``) and
-may write more entries, all under ``"looker"`` (e.g. a ``ProbabilisticActor``'s
-``("looker", "action_log_prob")`` and ``("looker", "logits")``). It runs under ``torch.no_grad()``
-and under the caller's exploration type. The looker's record of cycle ``t`` (``s_bar``, action and
-the module's outputs) is written to ``("next", "looker", ...)``; these are observation entries, so
-``step_mdp`` also carries them to the root of the next step and reset writes zeros there: the root
-copies are placeholders, read the record under ``"next"``.
-
-*External mode* (no looker module): the input also carries ``("looker", "action")``
-(Categorical(3), in the action spec), so both actions come from outside (Joint, Fixed_Forward,
-IA2C with its own looker policy). Both agents act on the same ``s``: move, then look, no ``s_bar``
-rendered (PettingZoo ``parallel_env`` semantics). There are no ``("looker", "observation")`` keys.
-
-Finished rooms are restarted by TorchRL's auto-reset (``_reset`` with a ``"_reset"`` mask, as in
-``step_and_maybe_reset``, ``rollout`` and ``Collector``). A step with TorchRL's ``"_step"`` mask (partial steps,
-as ``rollout(break_when_any_done=False, break_when_all_done=True)`` sends) moves only the rooms it names; the
-others keep their state and report a zero reward and the done flags of their last step. ``reset(rooms_state=s)``
-puts every room where :meth:`~ActivePerceptionEnv.rooms_state` found it and starts no episode (how a collector
-resumes a checkpoint).
-
-Seeding: :meth:`set_seed` gives room ``i`` its own stream of episode seeds, derived from the base seed and ``i``
-only (``first_room + i`` when the rooms are split over several envs), so two envs seeded alike
-(E1 and E2, whatever ``num_envs`` and whatever their looker) start the ``k``-th episode of room ``i``
-in the same layout; ``episode_seeds`` holds each room's current episode seed. A seed takes effect at each
-room's next reset: seed an env before its first reset (``make_env(seed=...)``), or reset it after seeding. A
-TorchRL ``Collector`` resets its env when it is built, so ``collector.set_seed(s)`` needs a
-``collector.reset()`` after it (or build the env with ``seed=``); ``env.reset(seed=s)`` is ``env.set_seed(s)``
-followed by the reset. Training rooms
-(``split="train"``) draw even episode seeds and evaluation rooms (``split="eval"``) odd ones, so an
-evaluation layout never repeats a training layout whatever the base seeds.
-
-The env can be pickled and ``copy.deepcopy``-ed: a copy steps on exactly as the original (physics state, episode
-counters and seeds) and makes its own GL context. ``ParallelEnv`` and multi-process collectors still do best with a
-function that builds it (``functools.partial(make_env, ...)``): nothing to copy.
-
-Several of these envs in TorchRL's batched envs: ``ParallelEnv(k, ...).set_seed(s)`` seeds the workers apart
-(TorchRL gives each its own seed), but ``reset(seed=s)`` hands every worker the same ``s``, so with the same
-``first_room`` they play the same layouts (give each worker its own ``first_room``, or use ``set_seed``). In
-looker mode the looker runs where the env runs. In another process (a ``ParallelEnv`` worker, a multi-process
-collector's worker) it is a copy of the module: changes to the weights in the main process do not reach it
-unless you send them (``activeperc-train --collect-workers`` does), and in a ``ParallelEnv`` worker the
-caller's exploration type does not reach it either (it acts by the module's default interaction type, for a
-``ProbabilisticActor`` deterministic); a collector's worker steps its env under the collector's exploration
-type. ``SerialEnv`` and an in-process ``Collector`` run the looker itself, under the caller's exploration type.
+Its keys, looker and external modes, resets and seeding are in docs/training.md, "The TorchRL env".
 """
 
 from __future__ import annotations
@@ -123,7 +41,7 @@ def make_env(
     Args:
         num_envs: number of rooms (the env's ``batch_size`` is ``[num_envs]``).
         device: where observations, rewards and done flags live (images stay uint8).
-        looker: the looker module (looker mode), or ``None`` for external mode (see the module doc).
+        looker: the looker module (looker mode), or ``None`` for external mode (docs/training.md).
         seed: base seed of the rooms' layout streams (same as calling ``env.set_seed(seed)``);
             give E1 and E2 the same seed to give them the same reset sequence.
         split: ``"train"`` (even episode seeds) or ``"eval"`` (odd ones): the two never share a layout.
@@ -162,7 +80,7 @@ class ActivePerceptionEnv(EnvBase):
         device: device of the output tensors.
         looker: the looker module, or ``None`` (external mode).
         nthread: physics threads of the simulator (0: every core).
-        split: ``"train"`` or ``"eval"``: the parity of the episode seeds (see the module doc).
+        split: ``"train"`` or ``"eval"``: the parity of the episode seeds.
         first_room: index of the first room in the seeding of a larger env split over several (see :func:`make_env`).
         look_views: in looker mode, also record under ``("looker", "look_views")`` the ``"image"`` (3, H, W, 3) and
             ``"pan"`` (3, 1) that 'pan left', 'hold' and 'pan right' would have given the mover in each cycle

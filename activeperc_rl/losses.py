@@ -71,7 +71,7 @@ or goes on after ``t = T - 1`` (cut at the batch edges). Steps masked out by
 ``("collector", "mask")`` (padding) belong to no trajectory, and a trajectory made only of masked
 steps is not counted.
 
-The keys (see :mod:`activeperc_rl.envs`): the critics read the mover's observation ``s_t`` at the
+The keys (docs/training.md, "The TorchRL env"): the critics read the mover's observation ``s_t`` at the
 root of each step; the looker's record of cycle ``t`` (``s_bar_t`` under
 ``("looker", "observation")`` and ``u^c_t`` at ``("looker", "action")``) is read under
 ``"next"``. All of them can be renamed with :meth:`MetaEvaluationLoss.set_keys`.

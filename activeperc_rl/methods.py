@@ -420,7 +420,7 @@ class Curriculum(Joint):
 
 
 class Meta(_MoverA2C):
-    """The paper's meta-evaluation (section 3), one iteration as in DESIGN.md section 4.
+    """The paper's meta-evaluation (section 3), one iteration (docs/training.md, "The algorithm in code").
 
     1. roll the mover out with phi1 in E1 (D1) and with epsilon-greedy phi2 in E2 (D2);
     2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);

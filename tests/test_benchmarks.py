@@ -127,21 +127,6 @@ def test_env_scaling_refuses_an_output_it_could_not_write_before_timing(env_scal
     assert f"--csv: {str(tmp_path)!r} is a directory" in capsys.readouterr().err
 
 
-def test_performance_md_quotes_the_committed_scaling_csv():
-    root = BENCHMARKS.parent
-    rows = read_csv(root / "benchmarks" / "results" / "env_scaling.csv")
-    text = (root / "docs" / "performance.md").read_text()
-    table = {}
-    for line in text.splitlines():
-        cells = [c.strip() for c in line.strip("|").split("|")]
-        table[cells[0]] = cells[1:]
-    assert table["rooms N"] == [row["num_envs"] for row in rows]
-    assert table["cycles/s (summed over rooms)"] == [f"{float(row['cycles_per_s']):,.0f}" for row in rows]
-    assert table[f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"] == [
-        f"{float(row['ratio']):.2f}" for row in rows
-    ]
-
-
 def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone(harness):
     from activeperc_env.core import Simulator
 
@@ -381,12 +366,3 @@ def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
     rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
     assert {"default", "onednn", "portable"} <= set(rows)
     assert all(len(rows[mode].split(", ")) == 1 for mode in ("default", "onednn", "portable")), rows
-
-
-def test_training_md_shows_the_committed_portable_speed_table():
-    """docs/training.md's table is the one benchmarks/results/cpu2/portable_speed.txt holds (regenerate both)."""
-    root = BENCHMARKS.parent
-    text = (root / "docs" / "training.md").read_text()
-    block = text.split("<!-- portable: begin -->")[1].split("<!-- portable: end -->")[0]
-    committed = (root / "benchmarks" / "results" / "cpu2" / "portable_speed.txt").read_text()
-    assert table_lines(block) == table_lines(committed) and table_lines(block)

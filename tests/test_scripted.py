@@ -2,7 +2,6 @@
 
 import importlib.util
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -144,13 +143,3 @@ def test_the_wilson_interval_holds_hand_numbers():
     low, high = module.wilson(8, 10)
     assert (round(low, 4), round(high, 4)) == (0.4902, 0.9433)  # z = 1.96, Wilson (1927): 0.49016, 0.94332
     assert module.wilson(0, 10)[0] == pytest.approx(0.0, abs=1e-12) and module.wilson(10, 10)[1] == pytest.approx(1.0)
-
-
-def test_env_md_shows_the_committed_value_of_looking_table():
-    """docs/env.md's table is the one value_of_looking.py makes of the committed CSV (regenerate both together)."""
-    module = load_value_of_looking()
-    rows = module.read_csv(ROOT / "experiments" / "results" / "value_of_looking.csv")
-    text = (ROOT / "docs" / "env.md").read_text()
-    block = re.search(r"<!-- value_of_looking: begin -->\n(.*?)\n<!-- value_of_looking: end -->", text, re.DOTALL)
-    assert block is not None, "docs/env.md lost its value_of_looking block"
-    assert block.group(1).strip() == module.table(rows)

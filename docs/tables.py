@@ -1,0 +1,513 @@
+"""Write the docs' tables of results from the committed CSVs.
+
+    python docs/tables.py            # rewrite every table between <!-- NAME --> and <!-- /NAME --> in docs/
+    python docs/tables.py --check    # change nothing; exit 1 naming each table its CSV no longer gives
+
+Each table's numbers live in a committed CSV, with the command, the machine and the date of each row where the
+numbers were copied from what a run printed. Spreads over seeds (mean ± 95 % interval, Student's t) are computed
+here from the sweeps' CSVs, as ``experiments/fig1/aggregate.py`` computes them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+FIG1 = "experiments/fig1/results"
+sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  # the scripts' own table makers
+
+from aggregate import mean_ci, replace_between, summary_table, with_reference  # noqa: E402
+from looker_stats import markdown_table  # noqa: E402
+from value_of_looking import read_csv as read_looking  # noqa: E402
+from value_of_looking import table as looking_table  # noqa: E402
+
+
+def read(path: str) -> list[dict]:
+    """The rows of the CSV at ``path`` (relative to the repository root)."""
+    with open(ROOT / path, newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def markdown(header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table with a newline at its end."""
+    lines = [header, ["---"] * len(header), *rows]
+    return "".join("| " + " | ".join(line) + " |\n" for line in lines)
+
+
+def spread(values) -> str:
+    """``mean ± half-width`` of the 95 % interval over seeds, two digits."""
+    return "{:.2f} ± {:.2f}".format(*mean_ci([float(v) for v in values]))
+
+
+def seeds_of(text: str) -> list[str]:
+    """``"0-4"`` as ``["0", "1", "2", "3", "4"]``."""
+    first, last = text.split("-")
+    return [str(seed) for seed in range(int(first), int(last) + 1)]
+
+
+def sweep_outcome(row: dict) -> dict:
+    """A row over seeds of a sweep: its held-out, random and final training success from the sweep's CSVs."""
+    seeds = seeds_of(row["seeds"])
+    runs = {r["seed"]: r for r in read(row["sweep"]) if f"{r['method']}_fov{r['fov']}" == row["sweep_run"]}
+    runs = [runs[seed] for seed in seeds]
+    curves = [read(f"{Path(row['sweep']).parent}/runs/{row['sweep_run']}_seed{seed}.csv") for seed in seeds]
+    return row | {
+        "success": spread(r["final_success_rate"] for r in runs),
+        "random": spread(r["random_success_rate"] for r in runs),
+        "train_success": spread(curve[-1]["success_rate"] for curve in curves),
+    }
+
+
+def command_cell(row: dict) -> str:
+    """The command, the seeds of a row over seeds, and the row's note."""
+    seeds = f", seeds {row['seeds']}" if row["sweep"] else ""
+    note = f" ({row['note']})" if row["note"] else ""
+    return f"`{row['command']}`{seeds}{note}"
+
+
+def held_out_cell(row: dict) -> str:
+    """Held-out success, against random's, and with the camera held forward where it was evaluated."""
+    random = f" vs {row['random']}" if row["random"] else ""
+    held = f" ({row['camera_held']} with the camera held forward)" if row["camera_held"] else ""
+    return f"{row['success']}{random}{held}"
+
+
+RUN_COLUMNS = {  # column name: (header, cell)
+    "command": ("command", command_cell),
+    "frames": ("frames", lambda row: f"{int(row['frames']):,}"),
+    "episodes": ("held-out episodes", lambda row: row["episodes"]),
+    "train": ("training success", lambda row: row["train_success"]),
+    "held-out": ("held-out success", held_out_cell),
+    "looked": ("what looked", lambda row: row["looked"]),
+}
+
+
+def provenance(rows: list[dict]) -> str:
+    """Where and when the rows ran: ``Rows 1-2, 5: MACHINE, DATE; ...`` (``All rows: ...`` when one place)."""
+    groups: dict[tuple[str, str], list[int]] = {}
+    for number, row in enumerate(rows, 1):
+        groups.setdefault((row["machine"], row["date"]), []).append(number)
+    if len(groups) == 1:
+        return "All rows: {}, {}.\n".format(*next(iter(groups)))
+    parts = [
+        f"row{'s' if len(numbers) > 1 else ''} {spans(numbers)}: {machine}, {date}"
+        for (machine, date), numbers in groups.items()
+    ]
+    text = "; ".join(parts) + ".\n"
+    return text[0].upper() + text[1:]
+
+
+def spans(numbers: list[int]) -> str:
+    """``[1, 2, 3, 5]`` as ``1-3, 5``."""
+    runs: list[list[int]] = []
+    for number in numbers:
+        if runs and runs[-1][-1] == number - 1:
+            runs[-1].append(number)
+        else:
+            runs.append([number])
+    return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]) for run in runs)
+
+
+def runs_table(name: str, columns: list[str]) -> str:
+    """The table of ``experiments/results/NAME.csv``'s runs in ``columns``, then where and when they ran."""
+    rows = [sweep_outcome(row) if row["sweep"] else row for row in read(f"experiments/results/{name}.csv")]
+    header = [RUN_COLUMNS[column][0] for column in columns]
+    cells = [[RUN_COLUMNS[column][1](row) for column in columns] for row in rows]
+    return markdown(header, cells) + "\n" + provenance(rows)
+
+
+def fig1_ablations() -> str:
+    """The ablations of the Figure 1 sweep after the runs of the config they change (as aggregate.py writes it)."""
+    return summary_table(with_reference(read(f"{FIG1}/ablations.csv"), read(f"{FIG1}/summary.csv")))
+
+
+def h100_long() -> str:
+    """The two longer H100 runs: held-out results and what ``phi2`` ended as."""
+    looker = {r["run"].split("/")[0]: r["phi2"] for r in read(f"{FIG1}/h100_long/looker.csv")}
+    rows = [
+        [
+            f"`{r['method']}`, {r['fov']} degrees",
+            f"{int(r['frames']):,}",
+            f"{float(r['final_success_rate']):.2f}",
+            f"{float(r['final_return']):.3f}",
+            f"{float(r['random_success_rate']):.2f}",
+            looker[f"{r['method']}_fov{r['fov']}"] or "-",
+        ]
+        for r in read(f"{FIG1}/h100_long/summary.csv")
+    ]
+    return markdown(["run", "frames", "held-out success", "held-out return", "random success", "`phi2`"], rows)
+
+
+def importance_weights() -> str:
+    """The three runs whose ``phi2`` settled on 'hold', with the paper's gradient and with importance weights."""
+    paper = looker_outcomes(f"{FIG1}/summary.csv", f"{FIG1}/looker.csv")
+    weighted = looker_outcomes(f"{FIG1}/importance_weights/summary.csv", f"{FIG1}/importance_weights/looker.csv")
+    rows = []
+    for seed, after in weighted.items():
+        before = paper[seed]
+        rows.append(
+            [f"seed {seed}, the paper's gradient / weighted"]
+            + [
+                f"{before[key]} {joint} {after[key]}"
+                for key, joint in (("held_out", "/"), ("training", "/"), ("entropy", "→"), ("phi2", "→"))
+            ]
+        )
+    header = [
+        "run (`meta_eps0.3`, 100 degrees)",
+        "held-out success",
+        "training success",
+        "`phi2` entropy, min / end",
+        "`phi2`",
+    ]
+    return markdown(header, rows)
+
+
+def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
+    """``meta_eps0.3`` at 100 degrees by seed: held-out and training success, ``phi2``'s entropy and end."""
+    held_out = {r["seed"]: r for r in read(summary) if r["method"] == "meta_eps0.3" and r["fov"] == "100"}
+    outcomes = {}
+    for row in read(looker):
+        run, seed = row["run"].split("/seed")
+        if run == "meta_eps0.3_fov100":
+            outcomes[seed] = {
+                "held_out": f"{float(held_out[seed]['final_success_rate']):.2f}",
+                "training": f"{float(row['success_rate']):.2f}",
+                "entropy": f"{float(row['min_entropy']):.2f} / {float(row['looker_entropy']):.2f}",
+                "phi2": row["phi2"],
+            }
+    return outcomes
+
+
+def portable_speed() -> str:
+    """The table ``benchmarks/portable_speed.py`` printed into its committed output."""
+    text = (ROOT / "benchmarks/results/cpu2/portable_speed.txt").read_text()
+    return "".join(line + "\n" for line in text.splitlines() if line.startswith("|"))
+
+
+def goal_visibility() -> str:
+    """How often the goal is hidden at the start, as ``experiments/goal_visibility.py --csv`` wrote it."""
+
+    def share(count: str, row: dict) -> str:
+        return f"{int(count) / int(row['seeds']):.1%} ({count}/{row['seeds']})" if count else "-"
+
+    rows = [
+        [
+            f"{float(r['fov']):g}",
+            r["num_obstacles"] + (" (default)" if r["num_obstacles"] == "3" else ""),
+            share(r["hidden_forward"], r),
+            share(r["hidden_every_pan"], r),
+            share(r["outside_view_cone"], r),
+        ]
+        for r in read("experiments/results/goal_visibility.csv")
+    ]
+    header = [
+        "FOV (deg)",
+        "occluders",
+        "hidden, camera forward",
+        "hidden at every pan angle",
+        "geometry: goal outside the forward view cone",
+    ]
+    return markdown(header, rows)
+
+
+BENCH = "benchmarks/results"
+GOAL_COLUMNS = {  # (room, MiniWorld's llvmpipe setting): header
+    ("v1", "as it ships"): "v1 against MiniWorld as it ships",
+    ("v1", "LP_NUM_THREADS=0"): "v1 against MiniWorld with `LP_NUM_THREADS=0` too",
+    ("v0", "as it ships"): "v0 (as it ships)",
+}
+
+
+def runs_footer(rows: list[dict]) -> str:
+    """The commands, machines and dates of benchmark rows, each once, with the output they printed."""
+    seen = dict.fromkeys(
+        f"`{r['command']}` ({r['machine']}, {r['date']}" + (f"; `{r['output']}`" if r.get("output") else "") + ")"
+        for r in rows
+    )
+    return "\n" + "Commands: " + "; ".join(seen) + ".\n"
+
+
+def times(value: str) -> str:
+    """A ratio as the benchmarks print it: ``1.30x``."""
+    return f"{float(value):.2f}x"
+
+
+def goal_cell(row: dict | None) -> str:
+    """A goal's ratio (bold for v1 as MiniWorld ships), its rounds, and the rates it is the ratio of."""
+    if row is None:
+        return "not run"
+    ratio = times(row["ratio"])
+    ratio = f"**{ratio}**" if (row["room"], row["peer"]) == ("v1", "as it ships") else ratio
+    details = [", ".join(map(times, row["rounds"].split()))] if row["rounds"] else []
+    if row["ours"]:
+        against = f" against {int(row['miniworld']):,} steps/s" if row["miniworld"] else ""
+        details.append(f"{int(row['ours']):,} {row['unit']}{against}")
+    details += [row["note"]] if row["note"] else []
+    return ratio + (f" ({'; '.join(details)})" if details else "")
+
+
+def goals() -> str:
+    """The 2-core goals: each goal against MiniWorld as it ships and with its llvmpipe set as ours, and in v0."""
+    rows = read(f"{BENCH}/cpu2/goals.csv")
+    cells = {(r["goal"], r["room"], r["peer"]): r for r in rows}
+    lines = [
+        [goal] + [goal_cell(cells.get((goal, *column))) for column in GOAL_COLUMNS]
+        for goal in dict.fromkeys(r["goal"] for r in rows)
+    ]
+    return markdown(["goal (2 CPU cores)", *GOAL_COLUMNS.values()], lines) + runs_footer(rows)
+
+
+def rooms_table(path: str) -> str:
+    """Cycles/s of the TorchRL env by number of rooms (and against MiniWorld where it was timed)."""
+    rows = read(path)
+    lines = [["cycles/s (summed over rooms)"] + [f"{float(r['cycles_per_s']):,.0f}" for r in rows]]
+    if rows[0]["miniworld_steps_per_s"]:
+        peer = f"x MiniWorld ({float(rows[0]['miniworld_steps_per_s']):,.0f} steps/s)"
+        lines.append([peer] + [f"{float(r['ratio']):.2f}" for r in rows])
+    return markdown(["rooms N"] + [r["num_envs"] for r in rows], lines)
+
+
+def env_memory() -> str:
+    """Resident memory over the committed memory run: first and last sample, the largest, the rise after 128."""
+    rows = read(f"{BENCH}/env_memory.csv")
+    mib = [float(r["rss_mib"]) for r in rows]
+    after = mib[-1] - next(float(r["rss_mib"]) for r in rows if r["episodes"] == "128")
+    cells = [f"{int(rows[-1]['episodes']):,}", f"{mib[0]:.1f} → {mib[-1]:.1f}", f"{max(mib):.1f}", f"{after:.1f}"]
+    return markdown(["episodes", "resident MiB, first → last", "largest", "rise after episode 128"], [cells])
+
+
+def view_profile() -> str:
+    """Microseconds per view, step by step."""
+    rows = read(f"{BENCH}/cpu2/view_profile.csv")
+    steps = ["context", "pose", "cull", "scene", "draw", "read", "total"]
+    header = [
+        "",
+        "GL context made current and released",
+        "state loaded",
+        "cull (none)",
+        "scene listed",
+        "draw calls",
+        "read-back",
+        "total",
+    ]
+    return markdown(header, [[r["run"]] + [r[step] for step in steps] for r in rows]) + runs_footer(rows)
+
+
+def llvmpipe_threads() -> str:
+    """Rates with llvmpipe drawing in the calling thread and with its threads, and the change."""
+    rows = read(f"{BENCH}/cpu2/llvmpipe_threads.csv")
+    lines = [
+        [
+            r["figure"],
+            f"{float(r['lp0']):,.0f}",
+            f"{float(r['default']):,.0f}",
+            f"{(float(r['lp0']) / float(r['default']) - 1) * 100:+.0f} %",
+        ]
+        for r in rows
+    ]
+    return markdown(["", "`LP_NUM_THREADS=0`", "default", "change"], lines) + runs_footer(rows)
+
+
+def gym_vector() -> str:
+    """Our batched vector env against Gymnasium's sync one, round by round."""
+    rows = read(f"{BENCH}/cpu2/gym_vector.csv")
+    lines = [
+        [
+            r["round"],
+            f"{int(r['ours']):,}",
+            f"{int(r['sync']):,}",
+            times(int(r["ours"]) / int(r["sync"])),
+            times(r["ours_over_miniworld"]),
+        ]
+        for r in rows
+    ]
+    header = ["round", "ours, steps/s", "sync, steps/s", "ours / sync", "ours / MiniWorld"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def train_methods() -> str:
+    """Each method's training frames/s, against MiniWorld, and the split of an iteration."""
+    rows = read(f"{BENCH}/cpu2/train_methods.csv")
+    lines = [
+        [
+            f"`{r['method']}`" + (f" ({r['note']})" if r["note"] else ""),
+            f"{int(r['frames_per_s']):,}",
+            f"{r['ratio']} ({', '.join(r['rounds'].split())})",
+            f"{r['collect']} % / {r['learn']} %",
+        ]
+        for r in rows
+    ]
+    header = ["method", "frames/s (median)", "x MiniWorld: median (rounds)", "collect / learn"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def collectors() -> str:
+    """`meta`'s frames/s with each collector, against in-process collection and against MiniWorld."""
+    rows = read(f"{BENCH}/cpu2/collectors.csv")
+    lines = [
+        [
+            r["collector"],
+            r["frames_per_s"],
+            (times(r["gain"]) + f" ({', '.join(map(times, r['gain_rounds'].split()))})") if r["gain_rounds"] else "1",
+            times(r["ratio"]),
+        ]
+        for r in rows
+    ]
+    header = ["collector", "frames/s", "against in-process, per round", "against MiniWorld's raw steps/s"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def workers_allocator() -> str:
+    """Pairs of runs in one process and with 2 collection workers, with the allocator that keeps freed memory."""
+    rows = read(f"{BENCH}/cpu2/workers_allocator.csv")
+    lines = [
+        [
+            f"{r['rooms']} (pair {r['pair']})",
+            r["in_process"],
+            f"{r['workers']} ({(int(r['workers']) / int(r['in_process']) - 1) * 100:+.0f} %)",
+            f"{int(r['collect_in_process']):,} -> {int(r['collect_workers']):,} ms",
+            f"{int(r['learn_in_process']):,} -> {int(r['learn_workers']):,} ms",
+        ]
+        for r in rows
+    ]
+    header = [
+        "rooms",
+        "in-process, frames/s",
+        "2 workers, frames/s",
+        "collection per iteration",
+        "learning per iteration",
+    ]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def h100_train() -> str:
+    """Training frames/s on the H100 machine by number of rooms (collection's share of a `meta` iteration)."""
+    rows = read(f"{BENCH}/h100/train.csv")
+
+    def rate(value, share=""):
+        return f"{int(value):,}" + (f" ({share} %)" if share else "") if value else ""
+
+    lines = [
+        [
+            r["rooms"] + (" (the default)" if r["rooms"] == "16" else ""),
+            rate(r["meta_gpu"], r["meta_gpu_collect"]),
+            rate(r["fixed_forward_gpu"]),
+            rate(r["meta_cpu"], r["meta_cpu_collect"]),
+        ]
+        for r in rows
+    ]
+    header = ["rooms", "`meta`, networks on the GPU", "`fixed_forward`, GPU", "`meta`, networks on the CPU"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
+def train_flags() -> str:
+    """``activeperc-train``'s flags as its ``--help`` gives them: each flag, its default and its meaning."""
+    from activeperc_rl.cli import build_parser
+
+    rows = []
+    for action in build_parser()._actions:
+        if action.dest == "help":
+            continue
+        meaning, given, default = action.help.replace("%%", "%").partition(" (default: ")
+        default = f"`{default.removesuffix(')')}`" if given else "off" if action.nargs == 0 else "none"
+        rows.append([", ".join(f"`{flag}`" for flag in action.option_strings), default, meaning])
+    return markdown(["flag", "default", "meaning"], rows)
+
+
+def method_options() -> str:
+    """Which method reads each option that only some methods read, from the method classes' ``READS``."""
+    from activeperc_rl.methods import METHOD_OPTIONS, METHODS
+
+    rows = [
+        [f"`--{option.replace('_', '-')}`"] + ["yes" if method in readers else "" for method in METHODS]
+        for option, readers in METHOD_OPTIONS.items()
+    ]
+    return markdown(["flag", *(f"`{method}`" for method in METHODS)], rows)
+
+
+SECTIONS = {  # marker: (document in docs/, the function that makes its table)
+    "train-flags": ("training.md", train_flags),
+    "method-options": ("training.md", method_options),
+    "goal-visibility": ("env.md", goal_visibility),
+    "value-of-looking": (
+        "env.md",
+        lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking.csv")) + "\n",
+    ),
+    "portable-speed": ("training.md", portable_speed),
+    "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
+    "room-v1-baselines": (
+        "training.md",
+        lambda: runs_table("room_v1_baselines", ["command", "held-out", "looked"]),
+    ),
+    "room-v2": ("training.md", lambda: runs_table("room_v2", ["command", "episodes", "held-out", "looked"])),
+    "memory-mover": ("training.md", lambda: runs_table("memory_mover", ["command", "episodes", "held-out", "looked"])),
+    "room-v0": ("training.md", lambda: runs_table("room_v0", ["command", "frames", "train", "held-out"])),
+    "fig1-summary": ("reproduction.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
+    "fig1-ablations": ("reproduction.md", fig1_ablations),
+    "looker-sweep": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker.csv"))),
+    "looker-probe": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker_probe.csv"))),
+    "looker-ablations": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker_ablations.csv"))),
+    "h100-long": ("reproduction.md", h100_long),
+    "importance-weights": ("reproduction.md", importance_weights),
+    "goals": ("performance.md", goals),
+    "view-profile": ("performance.md", view_profile),
+    "llvmpipe-threads": ("performance.md", llvmpipe_threads),
+    "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
+    "env-memory": ("performance.md", env_memory),
+    "gym-vector": ("performance.md", gym_vector),
+    "train-methods": ("performance.md", train_methods),
+    "collectors": ("performance.md", collectors),
+    "workers-allocator": ("performance.md", workers_allocator),
+    "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
+    "h100-train": ("performance.md", h100_train),
+}
+
+
+def made(docs: Path = DOCS) -> dict[Path, str]:
+    """The text of each document with generated tables, every table made anew from its CSV."""
+    texts: dict[Path, str] = {}
+    for marker, (name, make) in SECTIONS.items():
+        path = docs / name
+        texts[path] = replace_between(texts.get(path) or path.read_text(), marker, make())
+    return texts
+
+
+def stale(docs: Path = DOCS) -> list[str]:
+    """The markers whose table in ``docs`` differs from what its CSV gives."""
+    names = []
+    for marker, (name, make) in SECTIONS.items():
+        text = (docs / name).read_text()
+        try:
+            if replace_between(text, marker, make()) != text:
+                names.append(marker)
+        except ValueError as error:  # the document lost the table's markers
+            raise ValueError(f"docs/{name}: {error}") from None
+    return names
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line; returns the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a table is out of date")
+    args = parser.parse_args(argv)
+    try:
+        names = stale()
+    except ValueError as error:  # a document lost a table's markers
+        parser.error(str(error))
+    if args.check:
+        for marker in names:
+            print(f"docs/{SECTIONS[marker][0]}: the table '{marker}' is out of date: run python docs/tables.py")
+        return 1 if names else 0
+    for path, text in made().items():
+        if text != path.read_text():
+            path.write_text(text)
+            print(f"wrote {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
