@@ -18,6 +18,7 @@ from torchrl.envs import GymEnv, PettingZooWrapper
 from torchrl.envs.utils import ExplorationType, check_env_specs, set_exploration_type
 
 import activeperc_env
+from activeperc_env import EnvConfig
 from activeperc_rl.envs import ActivePerceptionEnv, make_env
 
 # fast episodes: each move lasts 0.5 s, so a scripted mover reaches the goal in 5-16 cycles
@@ -414,3 +415,14 @@ def test_pettingzoo_wrapper_reads_the_global_state():
 
 def test_help_shows_the_constructors_arguments():
     assert list(inspect.signature(ActivePerceptionEnv).parameters)[:3] == ["config", "num_envs", "device"]
+
+
+def test_the_room_is_given_typed_or_by_its_fields_not_both():
+    room = EnvConfig(max_cycles=5, num_obstacles=1)
+    env = make_env(num_envs=1, config=room)
+    assert env.sim.config == room
+    env.close()
+    with pytest.raises(ValueError, match="not both"):
+        make_env(num_envs=1, config=room, fov=100)
+    with pytest.raises(TypeError, match="expected an EnvConfig"):
+        make_env(num_envs=1, config={"fov": 100})
