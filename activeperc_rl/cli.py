@@ -27,12 +27,12 @@ from activeperc_rl.config import (
     COLLECTORS,
     DEVICES,
     E1_LOOKS,
-    LOOKER_CREDITS,
     MOVER_ROLLOUTS,
     OPTIMIZERS,
     TrainConfig,
     load_yaml,
 )
+from activeperc_rl.losses import LOOKER_CREDITS
 from activeperc_rl.methods import METHOD_OPTIONS, METHODS, unused_options
 from activeperc_rl.rundir import new_run_dir, remove_if_unused
 from activeperc_rl.signals import stop_raises_interrupt

@@ -25,12 +25,13 @@ from activeperc_env.checks import is_seed
 from activeperc_env.config import is_int, is_number, normalize_numbers, saved_room, with_field_docs
 from activeperc_env.core import MAX_ENVS
 from activeperc_rl.atomic import atomic_path
+from activeperc_rl.losses import LOOKER_CREDITS
+from activeperc_rl.methods import METHODS
 
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
 COLLECTORS = ("process", "ray")
-LOOKER_CREDITS = ("trajectory", "look", "every_look")
 OPTIMIZERS = ("adam", "sgd")
 
 
@@ -40,7 +41,7 @@ class TrainConfig:
     """Configuration of one training run; invalid values raise ``ValueError`` naming the field."""
 
     method: str = "meta"
-    """'meta' (the paper's meta-evaluation), or a baseline: 'fixed_forward', 'joint', 'ia2c', 'curriculum'."""
+    """The training method: 'meta' (the paper's meta-evaluation) or a baseline (a class of activeperc_rl.methods)."""
     frames: int = 300_000
     """Environment cycles to train for, counted over every room of every environment (E1 and E2 both)."""
     num_envs: int = 16
@@ -141,7 +142,7 @@ class TrainConfig:
             object.__setattr__(self, "channels", tuple(int(c) if is_int(c) else c for c in self.channels))
         normalize_numbers(self)
         checks = {
-            "method": (self.method in _methods(), f"one of {_methods()}"),
+            "method": (self.method in METHODS, f"one of {METHODS}"),
             "frames": (is_int(self.frames) and self.frames >= 1, "an int >= 1"),
             "num_envs": (_int_in(self.num_envs, 1, MAX_ENVS), f"an int in 1 .. {MAX_ENVS}"),
             "rollout_length": (_int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
@@ -280,13 +281,6 @@ def load_yaml(path: str | Path) -> dict:
     if not isinstance(values, dict):
         raise ValueError(f"config file {str(path)!r} must hold a mapping of options")
     return values
-
-
-def _methods() -> tuple[str, ...]:
-    """The training methods' names, from their classes (:data:`activeperc_rl.methods.METHOD_CLASSES`)."""
-    from activeperc_rl.methods import METHODS
-
-    return METHODS
 
 
 def _int_in(value, low: int, high: int) -> bool:

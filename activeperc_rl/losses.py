@@ -91,9 +91,11 @@ from torchrl.objectives import A2CLoss
 from torchrl.objectives.common import LossModule
 
 from activeperc_env.core import HOLD
-from activeperc_rl.config import LOOKER_CREDITS
 
-__all__ = ["MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
+__all__ = ["LOOKER_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
+
+LOOKER_CREDITS = ("trajectory", "look", "every_look")
+"""What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
 
 _REDUCTIONS = ("mean", "sum")
 

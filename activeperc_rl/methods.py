@@ -22,6 +22,7 @@ import dataclasses
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -32,7 +33,6 @@ from torchrl.objectives import A2CLoss, ValueEstimators
 
 from activeperc_env.core import JOINT_ACTIONS, usable_cpus
 from activeperc_rl.collection import Rollouts
-from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import JointA2CLoss, MetaEvaluationLoss
 from activeperc_rl.models import (
@@ -47,6 +47,9 @@ from activeperc_rl.models import (
     make_joint_policy,
     start_holding,
 )
+
+if TYPE_CHECKING:  # the config names the methods (METHODS), so it imports this module
+    from activeperc_rl.config import TrainConfig
 
 
 @dataclass
