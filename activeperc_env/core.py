@@ -27,6 +27,7 @@ from activeperc_env.config import EnvConfig, is_int, physics_steps, saved_room
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
 from activeperc_env.robot import make_base
+from activeperc_env.warp_backend import WarpBatch, WarpRenderer, check_backend
 
 MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
@@ -83,24 +84,39 @@ class Simulator:
         config: the environment configuration (defaults when ``None``).
         num_envs: number of rooms N.
         nthread: physics threads (``mujoco.batch.Batch``); 0 uses every core.
+        backend: ``"mujoco"`` (MuJoCo's CPU physics and OpenGL views) or ``"warp"`` (MuJoCo Warp's physics and
+            batch renderer on ``device``: :mod:`activeperc_env.warp_backend`).
+        device: where the ``"warp"`` backend runs: ``"cuda"`` (``"cuda:N"``) or ``"cpu"`` (slow, for tests).
 
     Every room must be reset before it is stepped, looked at or observed: before its first :meth:`reset` it holds
     no episode, and those calls raise ``RuntimeError``.
     """
 
-    def __init__(self, config: EnvConfig | None = None, num_envs: int = 1, nthread: int = 0):
+    def __init__(
+        self,
+        config: EnvConfig | None = None,
+        num_envs: int = 1,
+        nthread: int = 0,
+        backend: str = "mujoco",
+        device: str = "cpu",
+    ):
         if config is not None and not isinstance(config, EnvConfig):
             raise TypeError(f"config={config!r} is invalid: expected an EnvConfig (EnvConfig(**options)) or None")
         if not is_int(num_envs) or not 1 <= num_envs <= MAX_ENVS:
             raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int in 1 .. {MAX_ENVS}")
         if not is_int(nthread) or nthread < 0:
             raise ValueError(f"nthread={nthread!r} is invalid: expected an int >= 0 (0: every core)")
+        check_backend(backend, device)
+        self.backend, self.device = backend, device
         self.config = config if config is not None else EnvConfig()
         self.num_envs = num_envs = int(num_envs)
         self.model = load_model(self.config)
         self.substeps = physics_steps(self.config)
         nthread = min(nthread or usable_cpus(), num_envs)
-        self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
+        if backend == "warp":
+            self._batch = WarpBatch(self.model, num_envs, nthread=nthread, device=device)
+        else:
+            self._batch = mujoco.batch.Batch(self.model, num_envs, nthread=nthread)
         self._qpos = self._batch.bind("qpos")
         self._qvel = self._batch.bind("qvel")
         self._ctrl = self._batch.bind("ctrl")
@@ -111,7 +127,7 @@ class Simulator:
         # the latest range readings of every room, and which are still those of the base's pose (a look leaves them)
         self._ranges = np.zeros((num_envs, self.config.range_rays), dtype=np.float32)
         self._ranged = np.zeros(num_envs, dtype=bool)
-        self._renderer: TiledRenderer | None = None
+        self._renderer: TiledRenderer | WarpRenderer | None = None
         self._views: np.ndarray | None = None  # the latest first-person view of every room
         # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
         self._tiles = np.full(num_envs, -1)
@@ -174,11 +190,19 @@ class Simulator:
     def __getstate__(self) -> dict:
         """For pickle and ``copy.deepcopy``: :meth:`get_state` and the size of the batch; the GL renderer is not
         copied, the copy makes its own at its first render (the same pixels)."""
-        return {"num_envs": self.num_envs, "nthread": self._batch.nthread, **self.get_state()}
+        return {
+            "num_envs": self.num_envs,
+            "nthread": self._batch.nthread,
+            "backend": self.backend,
+            "device": self.device,
+            **self.get_state(),
+        }
 
     def __setstate__(self, state: dict) -> None:
         """Build the simulator anew and restore the rooms' state."""
-        self.__init__(EnvConfig(**saved_room(state["config"])), state["num_envs"], state["nthread"])
+        config = EnvConfig(**saved_room(state["config"]))
+        backend = {key: state[key] for key in ("backend", "device") if key in state}
+        self.__init__(config, state["num_envs"], state["nthread"], **backend)
         self.set_state(state)
 
     # ----------------------------------------------------------------- episode control
@@ -445,8 +469,11 @@ class Simulator:
         return data
 
     @property
-    def renderer(self) -> TiledRenderer:
+    def renderer(self) -> TiledRenderer | WarpRenderer:
         """The renderer, created on first use so that physics-only users need no GL."""
+        if self._renderer is None and self.backend == "warp":
+            cfg = self.config
+            self._renderer = WarpRenderer(self.model, cfg.width, cfg.height, self.num_envs, cfg.fov, self.device)
         if self._renderer is None:
             self._renderer = TiledRenderer(
                 self.model, self.config.width, self.config.height, self.num_envs, self.config.fov

@@ -20,11 +20,11 @@ from activeperc_env import EnvConfig
 from activeperc_env.arguments import ArgumentParser, add_config_flags
 from activeperc_env.config import LOOKER_REWARDS
 from activeperc_env.names import VERSIONS
+from activeperc_env.warp_backend import BACKENDS
 from activeperc_rl import portable
 from activeperc_rl.checkpoint import CHECKPOINT, load_run_config
-from activeperc_rl.collection import WorkerError
+from activeperc_rl.collection import COLLECTORS, WorkerError
 from activeperc_rl.config import (
-    COLLECTORS,
     DEVICES,
     E1_LOOKS,
     MOVER_ROLLOUTS,
@@ -41,6 +41,7 @@ CHOICES = {
     "method": METHODS,
     "device": DEVICES,
     "collector": COLLECTORS,
+    "backend": BACKENDS,
     "mover_rollouts": MOVER_ROLLOUTS,
     "e1_looks": E1_LOOKS,
     "looker_credit": LOOKER_CREDITS,

@@ -37,7 +37,7 @@ from activeperc_env import EnvConfig
 from activeperc_env.core import usable_cpus
 from activeperc_rl.envs import make_env
 
-BACKENDS = ("process", "ray")
+COLLECTORS = ("process", "ray")
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 DEATH_GRACE = 2.0  # seconds an error from the workers waits for a worker's death to show
 
@@ -71,6 +71,7 @@ class WorkerEnv:
     threads: int
     looker: nn.Module | None
     look_views: bool = False
+    backend: str = "mujoco"
 
     def __call__(self):
         """Build the worker's env (TorchRL calls this in the worker)."""
@@ -87,6 +88,7 @@ class WorkerEnv:
             first_room=self.first_room,
             nthread=self.threads,
             look_views=self.look_views,
+            backend=self.backend,
             config=self.config,
         )
 
@@ -103,11 +105,12 @@ class Rollouts:
         env_seed: base seed of the rooms' layout streams (as ``make_env(seed=...)``).
         torch_seed: seed of the workers' torch streams (worker ``j`` adds ``j``).
         workers: 0 (this process steps the rooms) or the number of workers.
-        backend: where the workers run: ``"process"`` or ``"ray"``.
+        collector: where the workers run: ``"process"`` or ``"ray"``.
         ray_address: the Ray cluster to join (``"local"``: a Ray instance of its own on this machine).
         device: where the rollouts are returned (and, with ``workers == 0``, where the env runs).
         name: what error messages call these rollouts (``"E2's collector"``).
         look_views: record what each look would have shown (``make_env``'s ``look_views``).
+        backend: the rooms' physics and renderer (``make_env``'s ``backend``).
     """
 
     def __init__(
@@ -121,25 +124,32 @@ class Rollouts:
         env_seed: int,
         torch_seed: int,
         workers: int = 0,
-        backend: str = "process",
+        collector: str = "process",
         ray_address: str = "local",
         device: torch.device | str = "cpu",
         name: str = "collector",
         look_views: bool = False,
+        backend: str = "mujoco",
     ):
-        if backend not in BACKENDS:
-            raise ValueError(f"backend={backend!r} is invalid: expected one of {BACKENDS}")
+        if collector not in COLLECTORS:
+            raise ValueError(f"collector={collector!r} is invalid: expected one of {COLLECTORS}")
         if not isinstance(workers, int) or not 0 <= workers <= num_envs:
             raise ValueError(f"workers={workers!r} is invalid: expected an int in 0 .. num_envs={num_envs}")
-        if backend == "ray" and workers and num_envs % workers:
+        if collector == "ray" and workers and num_envs % workers:
             raise ValueError(f"num_envs={num_envs} does not split evenly over {workers} Ray workers")
-        if backend == "ray" and workers and importlib.util.find_spec("ray") is None:
+        if collector == "ray" and workers and importlib.util.find_spec("ray") is None:
             raise ValueError("collector='ray' needs Ray, which is not installed: pip install -e '.[distributed]'")
-        self.device, self.workers, self.backend, self.name = torch.device(device), workers, backend, name
+        self.device, self.workers, self.name = torch.device(device), workers, name
         self._policy, self._looker = policy, looker
         if workers == 0:
             env = make_env(
-                num_envs, device=self.device, looker=looker, seed=env_seed, look_views=look_views, config=config
+                num_envs,
+                device=self.device,
+                looker=looker,
+                seed=env_seed,
+                look_views=look_views,
+                backend=backend,
+                config=config,
             )
             try:
                 self.collector = Collector(
@@ -156,12 +166,12 @@ class Rollouts:
         else:
             threads = max(1, usable_cpus() // workers)
             envs = [
-                WorkerEnv(config, n, first, env_seed, torch_seed + k, threads, looker, look_views)
+                WorkerEnv(config, n, first, env_seed, torch_seed + k, threads, looker, look_views, backend)
                 for k, (first, n) in enumerate(split_rooms(num_envs, workers))
             ]
             frames = [env.num_rooms * rollout_length for env in envs]
             try:
-                if backend == "ray":
+                if collector == "ray":
                     self.collector = _ray_collector(envs, policy, frames, ray_address)
                 else:
                     self.collector = _process_collector(envs, policy, frames, threads)

@@ -24,14 +24,15 @@ from activeperc_env import EnvConfig
 from activeperc_env.checks import is_seed
 from activeperc_env.config import is_int, is_number, normalize_numbers, saved_room, with_field_docs
 from activeperc_env.core import MAX_ENVS
+from activeperc_env.warp_backend import BACKENDS
 from activeperc_rl.atomic import atomic_path
+from activeperc_rl.collection import COLLECTORS
 from activeperc_rl.losses import LOOKER_CREDITS
 from activeperc_rl.methods import METHODS
 
 DEVICES = ("auto", "cpu", "cuda")
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
-COLLECTORS = ("process", "ray")
 OPTIMIZERS = ("adam", "sgd")
 
 
@@ -52,6 +53,9 @@ class TrainConfig:
     """Seed of the models, of the exploration and of the training layouts."""
     device: str = "auto"
     """Where the models run: 'cpu', 'cuda', or 'auto' (cuda when available)."""
+    backend: str = "mujoco"
+    """The rooms' physics and renderer: 'mujoco' (CPU physics, OpenGL views) or 'warp' (MuJoCo Warp, on the GPU
+    when the models are; pip install -e '.[warp]')."""
     torch_threads: int = 1
     """Threads of torch's CPU ops while collecting (0: torch's default); 1 leaves the other cores to the physics
     and the renderer."""
@@ -156,6 +160,7 @@ class TrainConfig:
                 f"an int in 0 .. num_envs ({self.num_envs})",
             ),
             "collector": (self.collector in COLLECTORS, f"one of {COLLECTORS}"),
+            "backend": (self.backend in BACKENDS, f"one of {BACKENDS}"),
             "ray_address": (
                 isinstance(self.ray_address, str) and self.ray_address != "",
                 "'local', 'auto' or HOST:PORT",

@@ -33,6 +33,7 @@ def make_env(
     first_room: int = 0,
     nthread: int = 0,
     look_views: bool = False,
+    backend: str = "mujoco",
     config: EnvConfig | None = None,
     **env_config,
 ):
@@ -49,6 +50,8 @@ def make_env(
             envs (worker processes): room ``i`` here gets the layouts of room ``first_room + i`` there.
         nthread: physics threads (0: every core this process may use).
         look_views: in looker mode, record what each look would have shown (see :class:`ActivePerceptionEnv`).
+        backend: the rooms' physics and renderer: ``"mujoco"`` (CPU physics, OpenGL) or ``"warp"`` (MuJoCo Warp,
+            on the GPU when ``device`` is one, else on Warp's CPU device).
         config: the room, as an :class:`~activeperc_env.EnvConfig`; or else
         **env_config: any :class:`~activeperc_env.EnvConfig` field (the others at their defaults).
     """
@@ -65,6 +68,7 @@ def make_env(
         split=split,
         first_room=first_room,
         look_views=look_views,
+        backend=backend,
     )
     if seed is not None:
         env.set_seed(seed)
@@ -85,6 +89,7 @@ class ActivePerceptionEnv(EnvBase):
         look_views: in looker mode, also record under ``("looker", "look_views")`` the ``"image"`` (3, H, W, 3) and
             ``"pan"`` (3, 1) that 'pan left', 'hold' and 'pan right' would have given the mover in each cycle
             (:meth:`~activeperc_env.Simulator.look_views`): the views meta's credit for every look values.
+        backend: the simulator's backend (:func:`make_env`).
     """
 
     def __init__(
@@ -97,6 +102,7 @@ class ActivePerceptionEnv(EnvBase):
         split: str = "train",
         first_room: int = 0,
         look_views: bool = False,
+        backend: str = "mujoco",
     ):
         if split not in SPLITS:
             raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
@@ -111,7 +117,9 @@ class ActivePerceptionEnv(EnvBase):
         self.look_views = bool(look_views)
         self.config = config
         self.num_envs = num_envs
-        self.sim = Simulator(config, num_envs=num_envs, nthread=nthread)
+        on_gpu = self.device is not None and self.device.type == "cuda"
+        warp_device = str(self.device) if backend == "warp" and on_gpu else "cpu"
+        self.sim = Simulator(config, num_envs=num_envs, nthread=nthread, backend=backend, device=warp_device)
         self.episode_seeds = np.zeros(num_envs, dtype=np.int64)
         # how each room's latest step ended it: a room left out of a partial step reports these again
         self._terminated = np.zeros(num_envs, dtype=bool)

@@ -80,7 +80,9 @@ def evaluate(
     quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
     returns, successes, lengths = ([[] for _ in range(rooms)] for _ in range(3))
     frames = []
-    env = make_env(rooms, device=device, looker=looker, seed=seed, split="eval", config=config.env)
+    env = make_env(
+        rooms, device=device, looker=looker, seed=seed, split="eval", backend=config.backend, config=config.env
+    )
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
     try:
         with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):

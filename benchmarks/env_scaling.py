@@ -32,14 +32,16 @@ CSV_COLUMNS = ("num_envs", "cycles_per_s", "miniworld_steps_per_s", "ratio")
 class RandomRooms:
     """A looker-mode ``make_env(num_envs)`` stepped with random actions the way training's collectors step it."""
 
-    def __init__(self, num_envs: int, seed: int):
+    def __init__(self, num_envs: int, seed: int, backend: str = "mujoco", device: str = "cpu"):
         import torch
 
         from activeperc_rl import make_env
         from activeperc_rl.models import RandomPolicy
 
         torch.manual_seed(seed)
-        self.env = make_env(num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed)
+        self.env = make_env(
+            num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed, backend=backend, device=device
+        )
         self.mover = RandomPolicy(("mover",))
         self.state = self.env.reset()
 
@@ -60,9 +62,11 @@ def rss_mib() -> float:
     return resident_pages * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def bench_rooms(num_envs: int, seconds: float, warmup: float, seed: int) -> float:
+def bench_rooms(
+    num_envs: int, seconds: float, warmup: float, seed: int, backend: str = "mujoco", device: str = "cpu"
+) -> float:
     """Cycles/s of :class:`RandomRooms` with ``num_envs`` rooms, summed over the rooms."""
-    rooms = RandomRooms(num_envs, seed)
+    rooms = RandomRooms(num_envs, seed, backend, device)
 
     def step() -> int:
         rooms.cycle()
@@ -185,6 +189,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--memory-rooms", type=harness.at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
     )
+    parser.add_argument(
+        "--backend", choices=("mujoco", "warp"), default="mujoco", help="the rooms' physics and renderer (mujoco)"
+    )
+    parser.add_argument(
+        "--device", default="cpu", help="where the observations live, and the warp backend runs: cpu or cuda (cpu)"
+    )
     parser.add_argument("--csv", type=Path, help="write the rates to this CSV (default: none)")
     parser.add_argument("--plot", type=Path, help="write the plot to this image (default: none)")
     parser.add_argument("--memory-csv", type=Path, help="write the RSS samples to this CSV (default: none)")
@@ -258,7 +268,7 @@ def main(argv: list[str] | None = None) -> dict:
     def measure(i: int) -> dict[int, float]:
         rates = {}
         for n in dict.fromkeys(args.num_envs):  # in the order given, each N once
-            rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed)
+            rates[n] = bench_rooms(n, args.seconds, args.warmup, args.seed, args.backend, args.device)
             print(f"round {i + 1}: make_env(num_envs={n}) {rates[n]:.1f} cycles/s", flush=True)
             gc.collect()
             if n == GOAL_NUM_ENVS:

@@ -78,6 +78,7 @@ def bench_method(
     collect_workers: int = 0,
     collector: str = "process",
     parts: bool = False,
+    backend: str = "mujoco",
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
@@ -98,6 +99,7 @@ def bench_method(
     from activeperc_rl.methods import make_method
 
     changes = {"method": name, "device": device, "collect_workers": collect_workers, "collector": collector}
+    changes["backend"] = backend
     if num_envs is not None:
         changes["num_envs"] = num_envs
     config = TrainConfig(**changes)
@@ -168,7 +170,9 @@ def combine(results: list[dict]) -> dict:
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command-line flags, every value checked."""
-    from activeperc_rl.config import COLLECTORS, DEVICES, TrainConfig
+    from activeperc_env.warp_backend import BACKENDS
+    from activeperc_rl.collection import COLLECTORS
+    from activeperc_rl.config import DEVICES, TrainConfig
     from activeperc_rl.methods import METHODS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -211,6 +215,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=["inprocess"],
         help="where each method collects, each timed in turn: in this process (inprocess, default), TorchRL's"
         " multi-process collector (process) or its Ray collector on a local Ray instance (ray)",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="mujoco",
+        help="the rooms' physics and renderer (TrainConfig.backend): mujoco (default) or warp (on --device)",
     )
     parser.add_argument(
         "--warmup-iters",
@@ -334,9 +344,17 @@ def main(argv: list[str] | None = None) -> dict:
         results = {}
         for name, collector in runs:
             label = run_label(name, collector, args.workers)
-            workers, backend = (0, "process") if collector == "inprocess" else (args.workers, collector)
+            workers, kind = (0, "process") if collector == "inprocess" else (args.workers, collector)
             results[label] = bench_method(
-                name, args.num_envs, args.seconds, args.warmup_iters, args.device, workers, backend, args.parts
+                name,
+                args.num_envs,
+                args.seconds,
+                args.warmup_iters,
+                args.device,
+                workers,
+                kind,
+                args.parts,
+                args.backend,
             )
             print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()

@@ -65,7 +65,7 @@ def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_we
     policy = TensorDictSequential(actor, FixedLooker())
     config = SMALL
     collector = Rollouts(
-        policy, None, config, rooms, rollout_length=4, workers=2, backend=backend, env_seed=7, torch_seed=0
+        policy, None, config, rooms, rollout_length=4, workers=2, collector=backend, env_seed=7, torch_seed=0
     )
     try:
         first = next(collector)
@@ -243,7 +243,7 @@ def test_a_worker_that_cannot_be_started_leaves_none_running(monkeypatch):
 
 def test_ray_needs_rooms_that_split_evenly():
     with pytest.raises(ValueError, match="num_envs=5 does not split evenly over 2 Ray workers"):
-        Rollouts(mover_that_always_picks(2), None, SMALL, 5, 4, workers=2, backend="ray",
+        Rollouts(mover_that_always_picks(2), None, SMALL, 5, 4, workers=2, collector="ray",
                  env_seed=0, torch_seed=0)  # fmt: skip
 
 
@@ -253,5 +253,5 @@ def test_ray_without_ray_installed_says_how_to_install_it(monkeypatch):
     find_spec = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else find_spec(name, *a))
     with pytest.raises(ValueError, match=r"collector='ray' needs Ray, which is not installed: pip install"):
-        Rollouts(mover_that_always_picks(2), None, SMALL, 4, 4, workers=2, backend="ray",
+        Rollouts(mover_that_always_picks(2), None, SMALL, 4, 4, workers=2, collector="ray",
                  env_seed=0, torch_seed=0)  # fmt: skip

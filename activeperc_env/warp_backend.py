@@ -1,0 +1,163 @@
+"""The MuJoCo Warp backend: the rooms' physics and first-person views batched on a Warp device (a GPU, or the CPU).
+
+``Simulator(config, num_envs, backend="warp", device="cuda")`` steps every room's physics with ``mujoco_warp`` and
+draws the eye camera with its ray-traced batch renderer; the episode logic (layouts, reward, termination) is the
+simulator's own, shared with the default backend. Needs the ``warp`` extra.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import logging
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from activeperc_env import names
+
+BACKENDS = ("mujoco", "warp")
+STEPPED = ("qpos", "qvel", "ctrl", "qacc_warmstart", "mocap_pos", "mocap_quat")
+"""The fields of a room's state that a step reads and writes, copied to the device and back around it."""
+
+
+def check_backend(backend: str, device: str) -> None:
+    """``ValueError`` naming ``backend`` or ``device`` when this machine cannot run them."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r} is invalid: expected one of {BACKENDS}")
+    if backend == "mujoco":
+        if device != "cpu":
+            raise ValueError(f"device={device!r} is invalid for backend='mujoco': it runs on the CPU ('cpu')")
+        return
+    if importlib.util.find_spec("mujoco_warp") is None:
+        raise ValueError("backend='warp' needs MuJoCo Warp, which is not installed: pip install -e '.[warp]'")
+    if not isinstance(device, str) or device.split(":")[0] not in ("cpu", "cuda"):
+        raise ValueError(f"device={device!r} is invalid: expected 'cpu' or 'cuda' (or 'cuda:N')")
+    if device.startswith("cuda"):
+        warp, _ = _warp()
+        if warp.get_cuda_device_count() == 0:
+            raise ValueError(f"device={device!r} is invalid: Warp sees no CUDA GPU (device='cpu' runs, slowly)")
+
+
+def _warp():
+    """Warp and MuJoCo Warp, imported on first use."""
+    import warp
+
+    if warp.config.log_level == logging.INFO:  # Warp's default logs every kernel it loads; a choice of yours stays
+        warp.config.log_level = logging.WARNING
+    import mujoco_warp
+
+    return warp, mujoco_warp
+
+
+def warp_model(model: mujoco.MjModel):
+    """The scene on the current Warp device (MuJoCo Warp needs the midphase, which only speeds collisions up)."""
+    _, mujoco_warp = _warp()
+
+    model = copy.copy(model)
+    model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_MIDPHASE)
+    return mujoco_warp.put_model(model), model
+
+
+class WarpBatch(mujoco.batch.Batch):
+    """A :class:`mujoco.batch.Batch` whose :meth:`step` runs on a Warp device: the rooms' state lives in the batch's
+    rows as on the default backend (resets, copies and checkpoints work alike), a step copies the stepped fields
+    (:data:`STEPPED`) to one ``mujoco_warp`` data of all rooms, steps every room and keeps the rooms ``ids``."""
+
+    def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int = 0, device: str = "cpu"):
+        warp, mujoco_warp = _warp()
+        super().__init__(model, nsim, nthread=nthread)
+        self.device = device
+        with warp.ScopedDevice(device):
+            self._warp_model, host_model = warp_model(model)
+            self._warp_data = mujoco_warp.make_data(host_model, nworld=nsim)
+        self._host_rows = {name: self.bind(name) for name in ("time", *STEPPED)}
+
+    def step(self, ids=None, nstep: int = 1, stage=mujoco.mjtStage.mjSTAGE_NONE) -> None:
+        """Advance the rooms ``ids`` (all when ``None``) by ``nstep`` physics steps; the others keep their state."""
+        warp, mujoco_warp = _warp()
+        ids = np.arange(self.nsim) if ids is None else np.asarray(ids)
+        with warp.ScopedDevice(self.device):
+            for name in STEPPED:
+                field = getattr(self._warp_data, name)
+                field.assign(
+                    warp.array(self._host_rows[name].astype(np.float32), dtype=field.dtype, device=self.device)
+                )
+            for _ in range(nstep):
+                mujoco_warp.step(self._warp_model, self._warp_data)
+            for name in STEPPED:
+                self._host_rows[name][ids] = getattr(self._warp_data, name).numpy()[ids]
+        self._host_rows["time"][ids] += nstep * self.model.opt.timestep
+
+
+class WarpRenderer:
+    """First-person views of many rooms drawn by MuJoCo Warp's batch renderer; maps by the OpenGL renderer.
+
+    Args:
+        model: the compiled scene.
+        width, height: size of one view in pixels.
+        max_views: the views one call draws at most in one pass (more take several).
+        fov: horizontal field of view in degrees (for the maps' view cone).
+        device: the Warp device.
+    """
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int, fov: float, device: str):
+        warp, mujoco_warp = _warp()
+        self.width, self.height, self.fov, self.device = width, height, fov, device
+        self.views_per_pass = max_views
+        self._mj_model = model
+        self._map_renderer = None
+        eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
+        with warp.ScopedDevice(device):
+            self._model, host_model = warp_model(model)
+            self._data = mujoco_warp.make_data(host_model, nworld=max_views)
+            self._context = mujoco_warp.create_render_context(
+                host_model,
+                nworld=max_views,
+                cam_res=(width, height),
+                render_rgb=True,
+                render_depth=False,
+                cam_active=[camera == eye for camera in range(model.ncam)],
+                enabled_geom_groups=[0, 1],  # the eye does not see the robot's own geoms (group 2)
+            )
+            self._rgb = warp.zeros((max_views, height, width), dtype=warp.vec3f)
+
+    def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, tiles: np.ndarray | None = None) -> np.ndarray:
+        """First-person views of the rooms whose states are given: (n, height, width, 3) uint8 (``tiles`` is
+        the OpenGL renderer's and changes nothing here)."""
+        out = np.empty((len(qpos), self.height, self.width, 3), dtype=np.uint8)
+        for first in range(0, len(qpos), self.views_per_pass):
+            last = min(len(qpos), first + self.views_per_pass)
+            out[first:last] = self._draw(qpos[first:last], mocap_pos[first:last])
+        return out
+
+    def _draw(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """Up to ``views_per_pass`` views in one pass of the renderer."""
+        warp, mujoco_warp = _warp()
+        n, worlds = len(qpos), self.views_per_pass
+        rows = np.minimum(np.arange(worlds), n - 1)  # the unused worlds repeat the last view
+        with warp.ScopedDevice(self.device):
+            self._data.qpos.assign(warp.array(qpos[rows].astype(np.float32)))
+            self._data.mocap_pos.assign(warp.array(mocap_pos[rows].astype(np.float32), dtype=warp.vec3))
+            mujoco_warp.kinematics(self._model, self._data)
+            mujoco_warp.camlight(self._model, self._data)
+            mujoco_warp.refit_bvh(self._model, self._data, self._context)
+            mujoco_warp.render(self._model, self._data, self._context)
+            mujoco_warp.get_rgb(self._context, 0, self._rgb)
+            rgb = self._rgb.numpy()[:n]
+        return np.rint(np.clip(rgb, 0.0, 1.0) * 255).astype(np.uint8)
+
+    def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """Bird's-eye map of one room, drawn by the OpenGL renderer (:meth:`TiledRenderer.render_map`)."""
+        from activeperc_env.render import TiledRenderer
+
+        if self._map_renderer is None:
+            self._map_renderer = TiledRenderer(self._mj_model, self.width, self.height, 1, self.fov)
+        return self._map_renderer.render_map(qpos, mocap_pos)
+
+    def close(self) -> None:
+        """Release the maps' GL context (the Warp arrays go with the renderer)."""
+        if self._map_renderer is not None:
+            self._map_renderer.close()
+            self._map_renderer = None
