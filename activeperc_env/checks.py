@@ -25,15 +25,20 @@ def check_seed(seed, name: str = "seed", rooms: int = 1) -> int:
     return int(seed)
 
 
-def check_actions(actions, count: int, n: int, agent: str, meanings: tuple[str, ...] = ()) -> np.ndarray:
+def check_actions(
+    actions, count: int, n: int, agent: str, meanings: tuple[str, ...] = (), scalar: bool | None = None
+) -> np.ndarray:
     """``actions`` as ``count`` int64 indices; ``ValueError`` naming ``agent`` and its action space ``Discrete(n)``
-    (with the ``meanings`` of its actions) unless they are one int of it per room (a scalar when ``count`` is 1)."""
+    (with the ``meanings`` of its actions) unless they are one int of it per room. ``scalar``: True takes one int
+    only (one agent's step), False an array of ``count`` only (a vector env's), None either when ``count`` is 1."""
     space = " ".join(filter(None, [f"Discrete({n})", str(meanings) if meanings else ""]))
     array = np.asarray(actions)
-    if array.shape == () and count == 1:
+    if array.shape == () and count == 1 and scalar is not False:
         array = array.reshape(1)
-    if array.shape != (count,) or not (np.issubdtype(array.dtype, np.integer) or array.size == 0):
-        expected = "an int" if count == 1 else f"{count} ints"
+    elif scalar:
+        array = None  # one agent's step takes an int, not an array of one
+    if array is None or array.shape != (count,) or not (np.issubdtype(array.dtype, np.integer) or array.size == 0):
+        expected = "an int" if count == 1 and scalar is not False else f"{count} ints"
         raise ValueError(f"{agent} action(s) {actions!r} invalid: expected {expected} in its action space {space}")
     outside = np.flatnonzero((array < 0) | (array >= n))
     if outside.size:

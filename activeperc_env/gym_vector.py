@@ -106,7 +106,7 @@ class _SingleAgentVectorEnv(VectorEnv):
         """
         if not self.sim.started().all():
             raise ResetNeeded("step() before reset(): call reset() first")
-        actions = check_actions(actions, self.num_envs, int(self.single_action_space.n), self.AGENT)
+        actions = check_actions(actions, self.num_envs, int(self.single_action_space.n), self.AGENT, scalar=False)
         moves, looks = self._split(actions)
         if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
             raise RuntimeError(

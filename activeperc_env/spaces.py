@@ -52,4 +52,4 @@ def looker_space() -> spaces.Discrete:
 
 def check_action(agent: str, action, space: spaces.Discrete) -> int:
     """``action`` as an int, or ``ValueError`` naming the agent and its space (``checks.check_actions``)."""
-    return int(check_actions(action, 1, int(space.n), agent)[0])
+    return int(check_actions(action, 1, int(space.n), agent, scalar=True)[0])

@@ -36,8 +36,9 @@ def check_backend(backend: str, device: str) -> None:
         raise ValueError(f"device={device!r} is invalid: expected 'cpu' or 'cuda' (or 'cuda:N')")
     if device.startswith("cuda"):
         warp, _ = _warp()
-        if warp.get_cuda_device_count() == 0:
-            raise ValueError(f"device={device!r} is invalid: Warp sees no CUDA GPU (device='cpu' runs, slowly)")
+        index, gpus = device.partition(":")[2] or "0", warp.get_cuda_device_count()
+        if not index.isdigit() or int(index) >= gpus:
+            raise ValueError(f"device={device!r} is invalid: Warp sees {gpus} CUDA GPU(s) (device='cpu' runs, slowly)")
 
 
 def _warp():
@@ -76,6 +77,8 @@ class WarpBatch(mujoco.batch.Batch):
 
     def step(self, ids=None, nstep: int = 1, stage=mujoco.mjtStage.mjSTAGE_NONE) -> None:
         """Advance the rooms ``ids`` (all when ``None``) by ``nstep`` physics steps; the others keep their state."""
+        if stage != mujoco.mjtStage.mjSTAGE_NONE:
+            raise ValueError(f"stage={stage!r} is invalid: the warp backend computes no stages after a step")
         warp, mujoco_warp = _warp()
         ids = np.arange(self.nsim) if ids is None else np.asarray(ids)
         with warp.ScopedDevice(self.device):

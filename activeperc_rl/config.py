@@ -160,7 +160,10 @@ class TrainConfig:
                 f"an int in 0 .. num_envs ({self.num_envs})",
             ),
             "collector": (self.collector in COLLECTORS, f"one of {COLLECTORS}"),
-            "backend": (self.backend in BACKENDS, f"one of {BACKENDS}"),
+            "backend": (
+                self.backend in BACKENDS and not (self.backend == "warp" and self.collect_workers),
+                f"one of {BACKENDS} ('warp' steps its rooms in this process: collect_workers 0)",
+            ),
             "ray_address": (
                 isinstance(self.ray_address, str) and self.ray_address != "",
                 "'local', 'auto' or HOST:PORT",

@@ -15,7 +15,7 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
-from activeperc_env.checks import check_actions, check_seed
+from activeperc_env.checks import check_actions
 from activeperc_env.config import is_int
 
 MOVER, LOOKER = "mover", "looker"
@@ -308,8 +308,8 @@ class ActivePerceptionEnv(EnvBase):
 
     def _set_seed(self, seed: int | None) -> None:
         """Give room ``i`` the episode-seed stream ``SeedSequence(seed, spawn_key=(first_room + i,))``."""
-        if seed is not None:
-            seed = check_seed(seed)
+        if seed is not None and not (is_int(seed) and seed >= 0):  # any entropy SeedSequence takes, not a room seed
+            raise ValueError(f"seed={seed!r} is invalid: expected None or an int >= 0")
         self._seed_rngs = [
             np.random.default_rng(
                 None if seed is None else np.random.SeedSequence(seed, spawn_key=(self.first_room + i,))

@@ -1,5 +1,6 @@
-"""Throughput of the batched TorchRL env against its number of rooms, each over MiniWorld's raw steps/s, the bare
-``Simulator`` beside it at N = 64, and the env's memory over many episodes.
+"""Throughput of the batched TorchRL env against its number of rooms, and its memory over many episodes.
+
+Each rate is set over MiniWorld's raw steps/s, with the bare ``Simulator`` beside it at N = 64.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
@@ -169,6 +170,8 @@ def plot_scaling(path: Path, rates: dict[int, float], peer_rate: float | None, c
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command-line flags, every value checked."""
+    from activeperc_env.warp_backend import BACKENDS
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--num-envs",
@@ -190,7 +193,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--memory-rooms", type=harness.at_least(int, "memory_rooms", 1), default=16, help="rooms of the memory run (16)"
     )
     parser.add_argument(
-        "--backend", choices=("mujoco", "warp"), default="mujoco", help="the rooms' physics and renderer (mujoco)"
+        "--backend", choices=BACKENDS, default="mujoco", help="the rooms' physics and renderer (mujoco)"
     )
     parser.add_argument(
         "--device", default="cpu", help="where the observations live, and the warp backend runs: cpu or cuda (cpu)"

@@ -1,5 +1,6 @@
-"""Speed of the active-perception room's APIs against MiniWorld in one run: the PettingZoo AEC env (and where its
-cycle's time goes), the batched core ``Simulator`` and Gymnasium's vector envs, each over MiniWorld's raw steps/s.
+"""Speed of the room's APIs against MiniWorld's raw steps/s, measured in one run.
+
+The PettingZoo AEC env (and where its cycle's time goes), the batched core ``Simulator`` and Gymnasium's vector envs.
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 

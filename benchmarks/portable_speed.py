@@ -1,5 +1,7 @@
-"""What portable mode costs: training frames/s with torch's CPU kernels as torch picks them, with oneDNN capped at
-AVX2, and with ``--portable``, in rounds of fresh trainings; the digests of their networks say which runs agree.
+"""What portable mode costs in training frames/s, in rounds of fresh trainings.
+
+Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, and with ``--portable``; the digests of their
+networks say which runs agree.
 
 Run it from the repository root::
 

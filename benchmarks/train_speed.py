@@ -1,5 +1,6 @@
-"""Training speed of every method against MiniWorld's raw env speed in one run, and with ``--parts`` where each
-method's collection time goes (physics, renders, the networks' forward passes, the rest).
+"""Training speed of every method against MiniWorld's raw env speed, measured in one run.
+
+With ``--parts``: where each method's collection time goes (physics, renders, the networks' forward passes, the rest).
 
 Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip install -e .[train,bench]``)::
 

@@ -1,5 +1,6 @@
-"""Where one first-person view's time goes (GL context, state, scene, draw calls, read-back), and what culling the
-boxes out of sight before the draw would save; it reads the renderer's private members.
+"""Where one first-person view's time goes, and what culling the boxes out of sight before the draw would save.
+
+The parts: GL context, state, scene, draw calls, read-back; it reads the renderer's private members.
 
 Run it from the repository root::
 

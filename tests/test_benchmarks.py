@@ -205,7 +205,7 @@ def test_timed_parts_gives_each_parts_seconds_per_unit_after_the_warm_up(harness
         return 2
 
     rate, per_unit = harness.timed_parts(step, seconds=0.2, warmup=0.2, stopwatch=stopwatch)
-    assert 0.005 <= per_unit["nap"] < 0.0075  # the warm-up's naps would double it
+    assert 0.005 <= per_unit["nap"] < 0.009  # the warm-up's naps would double it; a busy machine oversleeps a little
     assert 0.6 < rate * per_unit["nap"] <= 1  # the share of the timed seconds spent napping
 
 

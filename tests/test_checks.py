@@ -26,3 +26,12 @@ def test_actions_are_one_int_of_the_space_per_room():
         check_actions([0, 3], 2, 3, "looker", ("a", "b", "c"))
     with pytest.raises(ValueError, match=r"^mover action -1 is outside"):
         check_actions(-1, 1, 3, "mover")
+
+
+def test_one_agents_step_takes_an_int_and_a_vector_env_an_array():
+    assert check_actions(np.int64(1), 1, 3, "mover", scalar=True).tolist() == [1]
+    with pytest.raises(ValueError, match=r"mover action\(s\) \[2\] invalid: expected an int"):
+        check_actions([2], 1, 3, "mover", scalar=True)
+    assert check_actions([2], 1, 3, "mover", scalar=False).tolist() == [2]
+    with pytest.raises(ValueError, match=r"mover action\(s\) 2 invalid: expected 1 ints"):
+        check_actions(2, 1, 3, "mover", scalar=False)

@@ -59,20 +59,19 @@ class FailingLooker(nn.Module):
         return FixedLooker()(tensordict)
 
 
-@pytest.mark.parametrize("backend, rooms", [("process", 5), ("ray", 4)])  # Ray splits the rooms evenly only
-def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights(backend, rooms):
+@pytest.mark.parametrize("collector, rooms", [("process", 5), ("ray", 4)])  # Ray splits the rooms evenly only
+def test_rooms_split_over_workers_keep_their_layouts_and_act_with_the_current_weights(collector, rooms):
     actor = mover_that_always_picks(2)
     policy = TensorDictSequential(actor, FixedLooker())
-    config = SMALL
-    collector = Rollouts(
-        policy, None, config, rooms, rollout_length=4, workers=2, collector=backend, env_seed=7, torch_seed=0
+    rollouts = Rollouts(
+        policy, None, SMALL, rooms, rollout_length=4, workers=2, collector=collector, env_seed=7, torch_seed=0
     )
     try:
-        first = next(collector)
+        first = next(rollouts)
         pick(actor, 0)  # the workers must see this change before the next rollout
-        second = next(collector)
+        second = next(rollouts)
     finally:
-        collector.shutdown()
+        rollouts.shutdown()
     assert first.batch_size == second.batch_size == torch.Size([rooms, 4])
     assert (first["mover", "action"] == 2).all() and (second["mover", "action"] == 0).all()
     # room i of the split env starts in the layout of room i of one env of all the rooms
@@ -87,8 +86,7 @@ def test_each_worker_samples_from_a_stream_of_its_own():
     """Workers with as many rooms each would draw the same actions from one seed: less exploration than k = 0."""
     from activeperc_rl.models import RandomPolicy
 
-    config = SMALL
-    collector = Rollouts(RandomPolicy(("mover", "looker")), None, config, 4, 8, workers=2, env_seed=7, torch_seed=0)
+    collector = Rollouts(RandomPolicy(("mover", "looker")), None, SMALL, 4, 8, workers=2, env_seed=7, torch_seed=0)
     try:
         actions = next(collector)["mover", "action"]
     finally:

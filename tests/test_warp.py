@@ -72,6 +72,14 @@ def test_scripted_episodes_end_alike():
     assert np.abs(cycles - warp_cycles).max() <= 1  # a view a level lighter may shift a scripted turn by a cycle
 
 
+def test_a_step_of_some_rooms_leaves_the_others_as_they_were():
+    _, warp = pair(rooms=3)
+    before = warp.get_state()["physics"]
+    warp.move([2], ids=[1])
+    after = warp.get_state()["physics"]
+    assert np.array_equal(after[[0, 2]], before[[0, 2]]) and not np.array_equal(after[1], before[1])
+
+
 def test_a_copy_keeps_its_backend_and_state():
     _, warp = pair(rooms=2)
     warp.move([2, 2])
@@ -86,7 +94,8 @@ def test_a_copy_keeps_its_backend_and_state():
 @pytest.mark.parametrize(
     ("backend", "device", "named"),
     [("jax", "cpu", "backend='jax' is invalid"), ("mujoco", "cuda", "device='cuda' is invalid for backend='mujoco'"),
-     ("warp", "tpu", "device='tpu' is invalid")],
+     ("warp", "tpu", "device='tpu' is invalid"), ("warp", "cuda:x", "device='cuda:x' is invalid"),
+     ("warp", "cuda:99", "device='cuda:99' is invalid: Warp sees")],
 )  # fmt: skip
 def test_bad_backends_and_devices_are_named(backend, device, named):
     with pytest.raises(ValueError, match=named):
@@ -106,7 +115,7 @@ def test_the_torchrl_env_on_warp_gives_the_default_envs_rollout():
         rollouts.append(env.rollout(12, RandomPolicy(("mover", "looker")), break_when_any_done=False))
         env.close()
     ours, warp = rollouts
-    assert torch.equal(ours["mover", "action"], warp["mover", "action"])
+    assert torch.equal(ours["next", "mover", "observation", "pan"], warp["next", "mover", "observation", "pan"])
     assert torch.equal(ours["next", "mover", "reward"], warp["next", "mover", "reward"])
     assert torch.equal(ours["next", "done"], warp["next", "done"])
     images = [r["next", "mover", "observation", "image"].float() for r in rollouts]
@@ -124,7 +133,7 @@ def test_activeperc_train_runs_on_warp(tmp_path, capsys):
     assert (out / "eval.json").is_file()
 
 
-def test_the_agreement_script_prints_a_row_per_room(capsys):
+def test_the_agreement_script_prints_a_row_per_room_version(capsys):
     import importlib.util
     from pathlib import Path
 
@@ -136,3 +145,10 @@ def test_the_agreement_script_prints_a_row_per_room(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(" | ")[0] for line in lines[2:]] == ["| v1", "| v2"]
     assert all(" | 0 | " in line for line in lines[2:])  # no episode ended apart
+
+
+def test_training_on_warp_keeps_its_rooms_in_one_process():
+    from activeperc_rl.config import TrainConfig
+
+    with pytest.raises(ValueError, match="TrainConfig.backend='warp' is invalid: .*collect_workers 0"):
+        TrainConfig(backend="warp", collect_workers=2)
