@@ -1,5 +1,5 @@
-"""The MuJoCo Warp backend on Warp's CPU device gives the default backend's episodes: the same layouts, rewards and
-ends, trajectories within float32's rounding, the goal in the same views."""
+"""The MuJoCo Warp backend gives the default backend's episodes: the same layouts, rewards and ends, trajectories
+within float32's rounding, the goal in the same views (on Warp's CPU device, and on a GPU where there is one)."""
 
 import pickle
 
@@ -15,10 +15,20 @@ ROOMS = 6
 TRAJECTORY_TOLERANCE = 2e-3  # state() differences: float32 physics against MuJoCo's float64 (docs/env.md)
 
 
-def pair(config: EnvConfig | None = None, rooms: int = ROOMS) -> tuple[Simulator, Simulator]:
-    """The default backend and the warp backend on the CPU, reset with the same seeds."""
+def gpus() -> int:
+    """CUDA GPUs Warp sees."""
+    import warp
+
+    return warp.get_cuda_device_count()
+
+
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif("gpus() == 0", reason="needs a CUDA GPU"))]
+
+
+def pair(config: EnvConfig | None = None, rooms: int = ROOMS, device: str = "cpu") -> tuple[Simulator, Simulator]:
+    """The default backend and the warp backend on ``device``, reset with the same seeds."""
     ours = Simulator(config, num_envs=rooms, nthread=1)
-    warp = Simulator(config, num_envs=rooms, nthread=1, backend="warp", device="cpu")
+    warp = Simulator(config, num_envs=rooms, nthread=1, backend="warp", device=device)
     for sim in (ours, warp):
         sim.reset(seeds=list(range(rooms)))
     return ours, warp
@@ -30,8 +40,9 @@ def red(views: np.ndarray) -> np.ndarray:
     return (v[..., 0] > 120) & (v[..., 1] < 80) & (v[..., 2] < 80)
 
 
-def test_random_cycles_keep_both_backends_together():
-    ours, warp = pair()
+@pytest.mark.parametrize("device", DEVICES)
+def test_random_cycles_keep_both_backends_together(device):
+    ours, warp = pair(device=device)
     assert np.array_equal(ours.state(), warp.state())  # the same layouts
     rng = np.random.default_rng(0)
     intersections = unions = 0
