@@ -143,6 +143,10 @@ class Rounds:
     why: str | None = None
     """Why MiniWorld was not measured, when it was not."""
 
+    def report(self) -> dict:
+        """MiniWorld's part of a benchmark's JSON report."""
+        return {"miniworld": self.info, "miniworld_steps_per_s": self.peer, "miniworld_error": self.why}
+
 
 def in_rounds(
     rounds: int,
