@@ -473,7 +473,7 @@ class Simulator:
         """The renderer, created on first use so that physics-only users need no GL."""
         if self._renderer is None and self.backend == "warp":
             cfg = self.config
-            self._renderer = WarpRenderer(self.model, cfg.width, cfg.height, self.num_envs, cfg.fov, self.device)
+            self._renderer = WarpRenderer(self._batch, cfg.width, cfg.height, self.num_envs, cfg.fov)
         if self._renderer is None:
             self._renderer = TiledRenderer(
                 self.model, self.config.width, self.config.height, self.num_envs, self.config.fov

@@ -71,8 +71,8 @@ class WarpBatch(mujoco.batch.Batch):
         super().__init__(model, nsim, nthread=nthread)
         self.device = device
         with warp.ScopedDevice(device):
-            self._warp_model, host_model = warp_model(model)
-            self._warp_data = mujoco_warp.make_data(host_model, nworld=nsim)
+            self.warp_model, self.warp_host_model = warp_model(model)
+            self._warp_data = mujoco_warp.make_data(self.warp_host_model, nworld=nsim)
         self._host_rows = {name: self.bind(name) for name in ("time", *STEPPED)}
 
     def step(self, ids=None, nstep: int = 1, stage=mujoco.mjtStage.mjSTAGE_NONE) -> None:
@@ -84,11 +84,9 @@ class WarpBatch(mujoco.batch.Batch):
         with warp.ScopedDevice(self.device):
             for name in STEPPED:
                 field = getattr(self._warp_data, name)
-                field.assign(
-                    warp.array(self._host_rows[name].astype(np.float32), dtype=field.dtype, device=self.device)
-                )
+                field.assign(warp.array(self._host_rows[name].astype(np.float32), dtype=field.dtype))
             for _ in range(nstep):
-                mujoco_warp.step(self._warp_model, self._warp_data)
+                mujoco_warp.step(self.warp_model, self._warp_data)
             for name in STEPPED:
                 self._host_rows[name][ids] = getattr(self._warp_data, name).numpy()[ids]
         self._host_rows["time"][ids] += nstep * self.model.opt.timestep
@@ -98,22 +96,21 @@ class WarpRenderer:
     """First-person views of many rooms drawn by MuJoCo Warp's batch renderer; maps by the OpenGL renderer.
 
     Args:
-        model: the compiled scene.
+        batch: the rooms' physics, whose scene on the device the renderer shares.
         width, height: size of one view in pixels.
         max_views: the views one call draws at most in one pass (more take several).
         fov: horizontal field of view in degrees (for the maps' view cone).
-        device: the Warp device.
     """
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, max_views: int, fov: float, device: str):
+    def __init__(self, batch: WarpBatch, width: int, height: int, max_views: int, fov: float):
         warp, mujoco_warp = _warp()
-        self.width, self.height, self.fov, self.device = width, height, fov, device
+        self.width, self.height, self.fov, self.device = width, height, fov, batch.device
         self.views_per_pass = max_views
-        self._mj_model = model
+        self._mj_model = model = batch.model
         self._map_renderer = None
+        self._model, host_model = batch.warp_model, batch.warp_host_model
         eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
-        with warp.ScopedDevice(device):
-            self._model, host_model = warp_model(model)
+        with warp.ScopedDevice(self.device):
             self._data = mujoco_warp.make_data(host_model, nworld=max_views)
             self._context = mujoco_warp.create_render_context(
                 host_model,
