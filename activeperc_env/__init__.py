@@ -5,7 +5,8 @@ Gymnasium (registered on import): ``activeperc/Joint-v1``, ``activeperc/FixedFor
 their ``-v0`` (room v0); ``gymnasium.make_vec`` steps all their rooms in one batched core (:class:`JointVectorEnv`,
 :class:`FixedForwardVectorEnv`). Scripted movers and lookers: :mod:`activeperc_env.scripted`.
 Batched core for training: :class:`Simulator`. Options of every env: :class:`EnvConfig`. Agent names
-:data:`MOVER` and :data:`LOOKER`; action meanings :data:`MOVER_ACTIONS` and :data:`LOOKER_ACTIONS`.
+:data:`MOVER` and :data:`LOOKER`; action meanings :data:`MOVER_ACTIONS` (:func:`mover_actions` for
+room v3, whose base slides) and :data:`LOOKER_ACTIONS`.
 Single-agent classes behind the Gymnasium ids: :class:`JointEnv`, :class:`FixedForwardEnv`.
 """
 
@@ -16,7 +17,7 @@ choose_backend()
 import gymnasium  # noqa: E402
 
 from activeperc_env.config import EnvConfig  # noqa: E402
-from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator  # noqa: E402
+from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator, mover_actions  # noqa: E402
 from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
 from activeperc_env.gym_vector import FixedForwardVectorEnv, JointVectorEnv  # noqa: E402
 from activeperc_env.names import VERSIONS  # noqa: E402
@@ -35,6 +36,7 @@ __all__ = [
     "Simulator",
     "env",
     "parallel_env",
+    "mover_actions",
     "raw_env",
 ]
 

@@ -65,11 +65,11 @@ class EnvConfig:
     """
 
     VERSION_DEFAULTS: ClassVar[dict[str, dict[int, object]]] = {
-        "goal_distance": {0: 3.0, 1: 4.0, 2: 4.0},
-        "max_cycles": {0: 150, 1: 90, 2: 90},
-        "turn_speed": {0: 90.0, 1: 30.0, 2: 30.0},
-        "range_rays": {0: 0, 1: 13, 2: 13},
-        "heading_spread": {0: 90.0, 1: 90.0, 2: 180.0},
+        "goal_distance": {0: 3.0, 1: 4.0, 2: 4.0, 3: 4.0},
+        "max_cycles": {0: 150, 1: 90, 2: 90, 3: 90},
+        "turn_speed": {0: 90.0, 1: 30.0, 2: 30.0, 3: 30.0},
+        "range_rays": {0: 0, 1: 13, 2: 13, 3: 13},
+        "heading_spread": {0: 90.0, 1: 90.0, 2: 180.0, 3: 90.0},
     }
 
     fov: float = 60.0
@@ -93,11 +93,11 @@ class EnvConfig:
     """Degrees the camera turns for one 'pan left' or 'pan right' action."""
     control_hz: float = 5.0
     """Mover decisions per simulated second; a period must be a whole number of the version's physics steps
-    (50 / k Hz in v1 and v2, 200 / k Hz in v0)."""
+    (50 / k Hz in v1-v3, 200 / k Hz in v0)."""
     forward_speed: float = 0.75
     """Speed of the 'forward' action, in m/s (in v0 the wheels' rim speed)."""
     turn_speed: float | None = None
-    """Yaw rate of 'turn left' and 'turn right', in degrees per second."""
+    """Yaw rate of 'turn left' and 'turn right', in degrees per second (v3's base slides instead: unused there)."""
     range_rays: int | None = None
     """Rays of the range sensor (the observation's 'range'; 0: none), spread evenly from -90 to +90 degrees of the
     heading; they meet walls and occluders, never the goal."""
@@ -106,8 +106,8 @@ class EnvConfig:
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
     version: int = 1
-    """The room's version: 1; 2 (v1 without hints of where the goal lies); or 0 (the paper-faithful room of the
-    Figure 1 pilot)."""
+    """The room's version: 1; 2 (v1 without hints of where the goal lies); 3 (v1's robot sliding without turning,
+    occluders in random places); or 0 (the paper-faithful room of the Figure 1 pilot)."""
 
     def __post_init__(self) -> None:
         if not (is_int(self.version) and self.version in VERSIONS):  # first: the other defaults depend on it

@@ -30,6 +30,7 @@ from activeperc_env.robot import make_base
 from activeperc_env.warp_backend import WarpBatch, WarpRenderer, check_backend
 
 MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
+SLIDING_MOVER_ACTIONS = ("slide_left", "slide_right", "forward")  # the same three moves of v3's base, which never turns
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
 JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
@@ -60,6 +61,11 @@ class MoveResult:
         """Move ``index``'s outcome as the envs' ``info`` of an episode's last step: ``episode_success`` (bool) and
         ``episode_return`` (float)."""
         return {"episode_success": bool(self.success[index]), "episode_return": float(self.episode_return[index])}
+
+
+def mover_actions(version: int) -> tuple[str, ...]:
+    """The meanings of the mover's actions 0, 1, 2 in room ``version``: v3's base slides where the others turn."""
+    return SLIDING_MOVER_ACTIONS if version == 3 else MOVER_ACTIONS
 
 
 def load_model(config: EnvConfig) -> mujoco.MjModel:
@@ -227,7 +233,7 @@ class Simulator:
                 n_obs,
                 self.config.goal_distance,
                 math.radians(self.config.heading_spread),
-                shuffle=self.config.version >= 2,  # v2's occluders trade places: no colour marks the way
+                shuffle=self.config.version >= 2,  # v2's and v3's occluders trade places: no colour marks the way
             )
             qpos = self._qpos[i]
             self._base.place(qpos, layout.start_xy, layout.heading)
@@ -266,11 +272,11 @@ class Simulator:
         """The mover's half of a cycle: drive the wheels for one control period.
 
         Args:
-            actions: (n,) ints in {0: turn left, 1: turn right, 2: forward}.
+            actions: (n,) ints in {0: turn left, 1: turn right, 2: forward} (v3: 0 slide left, 1 slide right).
             ids: the rooms that move (all when ``None``), distinct and increasing; none of them may be done.
         """
         ids = self._as_ids(ids, changed=True)
-        actions = check_actions(actions, len(ids), len(MOVER_ACTIONS), "mover", MOVER_ACTIONS)
+        actions = check_actions(actions, len(ids), len(MOVER_ACTIONS), "mover", mover_actions(self.config.version))
         self.require_started("move()", ids)
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")

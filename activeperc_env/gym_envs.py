@@ -63,7 +63,7 @@ class JointEnv(_SingleAgentEnv):
         of each cycle. The look is applied after the move.
 
     Action Space:
-        ``Discrete(9)``: ``3 * u_m + u_c`` with ``u_m`` the move (0 turn left, 1 turn right, 2 forward) and
+        ``Discrete(9)``: ``3 * u_m + u_c`` with ``u_m`` the move (0 turn left, 1 turn right, 2 forward; v3 slides) and
         ``u_c`` the look (0 pan left, 1 hold, 2 pan right).
 
     Observation Space:
@@ -85,6 +85,8 @@ class JointEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
+        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
+        side; occluders in random places (docs/env.md).
         v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
         v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
         observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
@@ -107,7 +109,7 @@ class FixedForwardEnv(_SingleAgentEnv):
         with the looker always holding, so the camera never leaves the robot's heading.
 
     Action Space:
-        ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward.
+        ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward (v3: 0 slide left, 1 slide right).
 
     Observation Space:
         As :class:`JointEnv`'s; ``pan`` is always 0.
@@ -126,6 +128,8 @@ class FixedForwardEnv(_SingleAgentEnv):
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
+        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
+        side; occluders in random places (docs/env.md).
         v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
         v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
         observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).

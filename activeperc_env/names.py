@@ -7,8 +7,9 @@ other half of the contract.
 from pathlib import Path
 
 ASSETS = Path(__file__).parent / "assets"
-VERSIONS = (0, 1, 2)  # the room's versions (EnvConfig.version)
-SCENE_XML = {0: ASSETS / "scene.xml", 1: ASSETS / "scene_v1.xml", 2: ASSETS / "scene_v1.xml"}  # each version's scene
+VERSIONS = (0, 1, 2, 3)  # the room's versions (EnvConfig.version)
+# each version's scene: v2 and v3 keep v1's robot and room
+SCENE_XML = {0: ASSETS / "scene.xml"} | {v: ASSETS / "scene_v1.xml" for v in (1, 2, 3)}
 
 BASE_BODY = "base"
 # v0's base: a free joint on two driven wheels
@@ -31,7 +32,7 @@ ROBOT_GROUP = 2
 HIDDEN_GROUP = 5
 
 # values that must agree with the XML
-PHYSICS_TIMESTEP = {0: 0.005, 1: 0.02, 2: 0.02}  # seconds of one MuJoCo step (<option timestep>), by version
+PHYSICS_TIMESTEP = {0: 0.005, 1: 0.02, 2: 0.02, 3: 0.02}  # seconds of one MuJoCo step (<option timestep>), by version
 WHEEL_RADIUS = 0.05
 WHEEL_TRACK = 0.26  # distance between the wheels' contact points
 ROBOT_RADIUS = 0.18  # a circle around the chassis, for layout and success checks

@@ -82,7 +82,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         give a game where the looker acts on another view than the mover).
 
     Action Space:
-        ``mover_0``: ``Discrete(3)`` 0 turn left, 1 turn right, 2 forward.
+        ``mover_0``: ``Discrete(3)`` 0 turn left, 1 turn right, 2 forward (v3: 0 slide left, 1 slide right).
         ``looker_0``: ``Discrete(3)`` 0 pan left, 1 hold, 2 pan right (``pan_step`` degrees).
 
     Observation Space:
@@ -110,6 +110,8 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
 
     Version History:
+        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
+        side; occluders in random places (docs/env.md).
         v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
         v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
         observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).

@@ -1,8 +1,9 @@
 """The robot's base in each room version: where it stands, how a reset places it and how a move drives it.
 
-v0 rolls on two driven wheels (a free joint, wheel contacts with the floor, 5-ms physics steps). v1 is a unicycle:
-velocity servos on two slides and a yaw hinge, nothing touching the floor, 20-ms steps. Both take the same three
-moves (turn left, turn right, forward) and hold the same camera on a pan hinge.
+v0 rolls on two driven wheels (a free joint, wheel contacts with the floor, 5-ms physics steps). v1 (and v2) is a
+unicycle: velocity servos on two slides and a yaw hinge, nothing touching the floor, 20-ms steps. Both take the same
+three moves (turn left, turn right, forward) and hold the same camera on a pan hinge. v3 is v1's base whose moves
+slide it left, right or forward, never turning it.
 """
 
 from __future__ import annotations
@@ -85,7 +86,23 @@ class PlanarBase:
         return qpos[:, self.yaw]
 
 
-BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase}
+class HolonomicBase(PlanarBase):
+    """v3: v1's base, but its moves slide it left, right or forward without turning it: the body keeps its start
+    heading, so only the camera can look to the side."""
+
+    def drive(self, ctrl: np.ndarray, qpos: np.ndarray, actions: np.ndarray) -> None:
+        """Write the controls (rows of ``ctrl``) of the moves ``actions``: each drives at the forward speed along the
+        heading turned by the move's angle (+90 degrees left, -90 right, 0 forward), the yaw held still."""
+        direction = qpos[:, self.yaw] + _SLIDE_ANGLES[actions]
+        ctrl[:, self.drives] = np.stack(
+            [self._speed * np.cos(direction), self._speed * np.sin(direction), np.zeros(len(actions))], axis=1
+        )
+
+
+_SLIDE_ANGLES = np.array([math.pi / 2, -math.pi / 2, 0.0])  # HolonomicBase's direction of each move
+
+
+BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase, 3: HolonomicBase}
 
 
 def make_base(model: mujoco.MjModel, config: EnvConfig) -> WheeledBase | PlanarBase:

@@ -96,7 +96,13 @@ class _Policy:
 
 def _steer(bearing: np.ndarray, forward_ok: np.ndarray, config: EnvConfig) -> np.ndarray:
     """The move that brings the heading toward ``bearing`` (radians, positive to the left): a turn while it lies
-    beyond three quarters of one turn, else forward (where the way is clear; else a turn toward it)."""
+    beyond three quarters of one turn, else forward (where the way is clear; else a turn toward it). A base that
+    slides without turning (v3) slides toward a bearing beyond 45 degrees instead, and sideways where forward is
+    blocked."""
+    if config.version == 3:
+        action = np.where(bearing > math.pi / 4, TURN_LEFT, np.where(bearing < -math.pi / 4, TURN_RIGHT, FORWARD))
+        blocked = (action == FORWARD) & ~forward_ok
+        return np.where(blocked, np.where(bearing >= 0, TURN_LEFT, TURN_RIGHT), action)
     tolerance = 0.75 * math.radians(config.turn_speed) / config.control_hz
     action = np.where(bearing > tolerance, TURN_LEFT, np.where(bearing < -tolerance, TURN_RIGHT, FORWARD))
     blocked = (action == FORWARD) & ~forward_ok

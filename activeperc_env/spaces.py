@@ -41,7 +41,7 @@ def state_space(config: EnvConfig) -> spaces.Box:
 
 
 def mover_space() -> spaces.Discrete:
-    """``Discrete(3)``: 0 turn left, 1 turn right, 2 forward."""
+    """``Discrete(3)``: 0 turn left, 1 turn right, 2 forward (room v3: 0 slide left, 1 slide right)."""
     return spaces.Discrete(len(MOVER_ACTIONS))
 
 

@@ -437,6 +437,11 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         "env.md",
         lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking.csv")) + "\n",
     ),
+    "value-of-looking-v3": (
+        "env.md",
+        lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking_v3.csv")) + "\n",
+    ),
+    "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
     "room-v1-baselines": (

@@ -38,7 +38,7 @@ from activeperc_env.config import EnvConfig, field_docs
         ("range_rays", 1.5),
         ("range_max", 0.1),
         ("range_max", "2"),
-        ("version", 3),
+        ("version", 4),
         ("version", "1"),
         ("heading_spread", -1),
         ("heading_spread", 181),

@@ -17,7 +17,7 @@ BASE_ELEMENTS = {
     0: [(JOINT, names.ROOT_JOINT), (ACTUATOR, names.LEFT_WHEEL), (ACTUATOR, names.RIGHT_WHEEL)],
     1: [(JOINT, j) for j in names.BASE_JOINTS] + [(ACTUATOR, a) for a in names.BASE_DRIVES],
 }
-BASE_ELEMENTS[2] = BASE_ELEMENTS[1]  # v2's robot is v1's
+BASE_ELEMENTS[2] = BASE_ELEMENTS[3] = BASE_ELEMENTS[1]  # v2's and v3's robot is v1's
 
 
 @pytest.mark.parametrize("version", names.VERSIONS)
@@ -168,6 +168,28 @@ def test_v1_base_slides_along_a_wall_without_turning():
     assert heading == pytest.approx(math.radians(30), abs=1e-3)
     assert xy[0] == pytest.approx(names.ROOM_HALF_X - names.ROBOT_RADIUS, abs=0.01)  # at the wall
     assert xy[1] > -0.5 + 0.3  # and along it
+
+
+def test_v3s_base_slides_each_way_at_the_forward_speed_and_never_turns():
+    """Room v3's moves drive the base along its heading turned by +90 (slide left), -90 (slide right) or 0 degrees
+    (forward), a control period at the forward speed each once moving, and leave its heading where it started."""
+    sim = core.Simulator(EnvConfig(version=3, num_obstacles=0), num_envs=3)
+    sim.reset(seeds=np.arange(3))
+    for i in range(3):  # away from the walls
+        sim._base.place(sim._qpos[i], np.array([-1.0 + 0.8 * i, 0.0]), 0.9 * i - 0.6)
+    per_move = sim.config.forward_speed / sim.config.control_hz
+    for action, angle in ((0, math.pi / 2), (1, -math.pi / 2), (2, 0.0)):
+        for _ in range(3):
+            before = [sim.pose(i) for i in range(3)]
+            sim.move(np.full(3, action))
+        after = [sim.pose(i) for i in range(3)]
+        for (xy, heading, _), (xy2, _, _) in zip(before, after, strict=True):
+            direction = heading + angle
+            d = xy2 - xy
+            assert d @ [math.cos(direction), math.sin(direction)] == pytest.approx(per_move, rel=1e-3)
+            assert abs(d @ [-math.sin(direction), math.cos(direction)]) < 1e-4
+    # the yaw servo holds the heading against the camera mast's off-centre mass to 1e-5 rad a move
+    assert [sim.pose(i)[1] for i in range(3)] == pytest.approx([0.9 * i - 0.6 for i in range(3)], abs=2e-4)
 
 
 def test_the_hardest_config_never_runs_out_of_draws():
