@@ -114,7 +114,8 @@ class TrainConfig:
     (the paper does not)."""
     looker_credit: str = "trajectory"
     """'meta': what each look of D2 is credited with: 'trajectory' (the paper: its trajectory's meta-evaluator),
-    'look' (the value the look added, V(s') - V(s_bar)) or 'every_look' (expected over the three looks' values)."""
+    'look' (the value the look added, V(s') - V(s_bar)), 'every_look' (expected over the three looks' values) or
+    'best_look' (phi2 learns which look's view the critic values most)."""
     looker_optimizer: str = "adam"
     """'meta': phi2's optimizer, 'adam' or 'sgd' (whose steps grow with the meta-evaluator's size)."""
     curriculum_fraction: float = 0.3

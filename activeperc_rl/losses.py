@@ -60,6 +60,15 @@ one sampled look's::
 is needed; ``M_t`` is reported as ``sum_u pi_phi2(u) Q_t(u) - Q_t('hold')``, what the looker's policy adds over
 holding by the critic's account.
 
+With ``credit="best_look"`` the same values train ``pi_phi2`` as a classifier of the best look: cross-entropy
+toward ``argmax_u Q_t(u)`` ('hold' where no pan's view is valued above holding)::
+
+    loss_looker = - sum_t log pi_phi2(argmax_u Q_t(u) | s_bar_t)
+
+Unlike the policy gradient, whose step on a look shrinks with that look's probability, it moves a look that
+``pi_phi2`` deems unlikely as fast as a likely one; ``pi_phi2`` learns how often each look is the best from what
+the looker sees, so where the views do not tell, its looks spread over the ones that are best there.
+
 Trajectories
 ------------
 The rollouts are tensordicts of batch shape ``[B, T]`` (``B`` rooms, time last; any leading batch
@@ -94,7 +103,7 @@ from activeperc_env.core import HOLD
 
 __all__ = ["LOOKER_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
 
-LOOKER_CREDITS = ("trajectory", "look", "every_look")
+LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
 """What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
 
 _REDUCTIONS = ("mean", "sum")
@@ -210,8 +219,8 @@ class MetaEvaluationLoss(LossModule):
         reduction: ``"mean"`` divides the sums over steps by the number of valid steps of ``D2``,
             ``"sum"`` does not.
         credit: ``"trajectory"`` (the paper): each look gets its trajectory's ``M(tau_k)``; ``"look"``: each look
-            gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"every_look"``: every look of each cycle is valued (see the
-            module docstring).
+            gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"every_look"`` and ``"best_look"``: every look of each
+            cycle is valued (see the module docstring).
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
@@ -414,7 +423,7 @@ class MetaEvaluationLoss(LossModule):
                 raise ValueError(
                     "tensordict (D2) has no look that a move followed: every valid step ended its episode."
                 )
-            if self.credit == "every_look":
+            if self.credit in ("every_look", "best_look"):
                 return self._every_look(record, mask, baseline, num, num_ref)
             step_credit = meta = self._look_values(record, mask)  # each look's own value difference
 
@@ -449,7 +458,8 @@ class MetaEvaluationLoss(LossModule):
     def _every_look(
         self, record: TensorDictBase, mask: torch.Tensor, baseline: torch.Tensor, num: int, num_ref: int
     ) -> TensorDictBase:
-        """The loss with ``credit="every_look"`` on the valid steps ``mask`` of D2's looker ``record``."""
+        """The loss with ``credit="every_look"`` or ``"best_look"`` on the valid steps ``mask`` of D2's looker
+        ``record``."""
         steps = record[mask]
         group = self._looker_group()
         views = steps.get((group, "look_views"), None)
@@ -471,7 +481,11 @@ class MetaEvaluationLoss(LossModule):
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
-        gain = (probs * (q - expected.detach()[:, None])).sum(-1)  # its gradient is the policy gradient
+        if self.credit == "best_look":  # cross-entropy toward the look the critic values most, 'hold' on a tie
+            best = torch.where(q.max(-1).values > q[:, HOLD], q.argmax(-1), HOLD)
+            gain = dist.log_prob(best.reshape(dist.batch_shape)).reshape(-1)
+        else:
+            gain = (probs * (q - expected.detach()[:, None])).sum(-1)  # its gradient is the policy gradient
         entropy = dist.entropy().reshape(-1)
         loss_looker, loss_entropy = -gain.sum(), -self.entropy_coeff * entropy.sum()
         if self.reduction == "mean":

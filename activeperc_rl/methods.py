@@ -490,7 +490,7 @@ class Meta(_MoverA2C):
             looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon),
             seed_offset=e2_seed_offset,
             name="E2's collector",
-            look_views=self.config.looker_credit == "every_look",
+            look_views=self.config.looker_credit in ("every_look", "best_look"),
         )
 
     def iterate(self) -> Iteration:

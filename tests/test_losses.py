@@ -10,7 +10,7 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_rl.losses import JointA2CLoss, MetaEvaluationLoss, trajectory_ids, trajectory_means
+from activeperc_rl.losses import LOOKER_CREDITS, JointA2CLoss, MetaEvaluationLoss, trajectory_ids, trajectory_means
 
 PAN = ("mover", "observation", "pan")
 LOOKER_PAN = ("looker", "observation", "pan")
@@ -343,13 +343,26 @@ def test_credit_of_every_look_follows_the_expected_gradient():
     assert out["importance_weight"].item() == 1.0 and out["baseline"].item() == pytest.approx(6.0)
 
 
+def test_credit_of_the_best_look_is_a_cross_entropy_toward_it_with_hold_winning_ties():
+    # Q = (1, 0, 3): right is best; Q = (0, 0, -2): left ties with hold, so hold. Uniform pi: d(-log pi_best) / d logit
+    # = pi - onehot(best): (1, 1, -2) / 3 and (1, -2, 1) / 3, mean (2, -1, -1) / 6
+    logits = FixedLogits([0.0, 0.0, 0.0])
+    out = MetaEvaluationLoss(make_actor(logits), pan_critic(), pan_critic(), entropy_coeff=0.0, credit="best_look")(
+        every_look_td(), reference_td()
+    )
+    out["loss_looker"].backward()
+    assert torch.allclose(logits.logits.grad, torch.tensor([2.0, -1.0, -1.0]) / 6, atol=1e-7)
+    assert out["loss_looker"].item() == pytest.approx(math.log(3))
+    assert out["meta_value"].item() == pytest.approx(1 / 3)  # as every_look's: what pi adds over holding
+
+
 def test_credit_of_every_look_needs_the_views_of_every_look():
     with pytest.raises(ValueError, match="look_views=True"):
         MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="every_look")(look_td(), reference_td())
 
 
 def test_a_bad_credit_is_named():
-    with pytest.raises(ValueError, match="credit must be one of \\('trajectory', 'look', 'every_look'\\), got 'step'"):
+    with pytest.raises(ValueError, match=re.escape(f"credit must be one of {LOOKER_CREDITS}, got 'step'")):
         MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="step")
 
 
