@@ -372,6 +372,20 @@ def test_a_meta_iteration_soft_updates_phi1_towards_the_new_phi2_and_copies_w1_t
         assert torch.equal(meta.w2.state_dict()[key], value), key
 
 
+@pytest.mark.parametrize("credit", ["every_look", "best_look"])
+def test_a_meta_iteration_that_values_every_look_draws_their_views_and_steps_phi2(credit):
+    config = TrainConfig(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_lr=0.01,
+                         looker_credit=credit, env={"version": 3})  # fmt: skip
+    meta = make_method(config, torch.device("cpu"))
+    phi2 = _parameters(meta.phi2)
+    try:
+        meta.iterate()
+    finally:
+        meta.close()
+    # (the loss refuses a D2 without the views of every look: E2 drew them)
+    assert any(not torch.equal(a, b) for a, b in zip(phi2, _parameters(meta.phi2), strict=True))
+
+
 @pytest.mark.parametrize("shared_seeds", [True, False])
 def test_e2_explores_with_epsilon_on_e1s_layouts_unless_told_otherwise(shared_seeds):
     config = TrainConfig(num_envs=4, rollout_length=8, channels=(4,), hidden_size=8, epsilon=1.0,
