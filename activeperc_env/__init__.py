@@ -35,8 +35,8 @@ __all__ = [
     "MOVER_ACTIONS",
     "Simulator",
     "env",
-    "parallel_env",
     "mover_actions",
+    "parallel_env",
     "raw_env",
 ]
 

@@ -65,7 +65,7 @@ class MoveResult:
 
 def mover_actions(version: int) -> tuple[str, ...]:
     """The meanings of the mover's actions 0, 1, 2 in room ``version``: v3's base slides where the others turn."""
-    return SLIDING_MOVER_ACTIONS if version == 3 else MOVER_ACTIONS
+    return SLIDING_MOVER_ACTIONS if version in names.SLIDING_VERSIONS else MOVER_ACTIONS
 
 
 def load_model(config: EnvConfig) -> mujoco.MjModel:

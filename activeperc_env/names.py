@@ -8,6 +8,7 @@ from pathlib import Path
 
 ASSETS = Path(__file__).parent / "assets"
 VERSIONS = (0, 1, 2, 3)  # the room's versions (EnvConfig.version)
+SLIDING_VERSIONS = (3,)  # the versions whose base slides and never turns (robot.HolonomicBase)
 # each version's scene: v2 and v3 keep v1's robot and room
 SCENE_XML = {0: ASSETS / "scene.xml"} | {v: ASSETS / "scene_v1.xml" for v in (1, 2, 3)}
 

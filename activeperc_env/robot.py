@@ -17,6 +17,7 @@ from activeperc_env import names
 from activeperc_env.config import EnvConfig
 
 FORWARD = 2  # MOVER_ACTIONS.index("forward")
+_SLIDE_ANGLES = np.array([math.pi / 2, -math.pi / 2, 0.0])  # HolonomicBase's direction of each move, from the heading
 
 
 def _address(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
@@ -99,10 +100,7 @@ class HolonomicBase(PlanarBase):
         )
 
 
-_SLIDE_ANGLES = np.array([math.pi / 2, -math.pi / 2, 0.0])  # HolonomicBase's direction of each move
-
-
-BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase, 3: HolonomicBase}
+BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase} | {v: HolonomicBase for v in names.SLIDING_VERSIONS}
 
 
 def make_base(model: mujoco.MjModel, config: EnvConfig) -> WheeledBase | PlanarBase:

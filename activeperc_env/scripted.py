@@ -99,7 +99,7 @@ def _steer(bearing: np.ndarray, forward_ok: np.ndarray, config: EnvConfig) -> np
     beyond three quarters of one turn, else forward (where the way is clear; else a turn toward it). A base that
     slides without turning (v3) slides toward a bearing beyond 45 degrees instead, and sideways where forward is
     blocked."""
-    if config.version == 3:
+    if config.version in names.SLIDING_VERSIONS:
         action = np.where(bearing > math.pi / 4, TURN_LEFT, np.where(bearing < -math.pi / 4, TURN_RIGHT, FORWARD))
         blocked = (action == FORWARD) & ~forward_ok
         return np.where(blocked, np.where(bearing >= 0, TURN_LEFT, TURN_RIGHT), action)

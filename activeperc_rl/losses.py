@@ -101,10 +101,12 @@ from torchrl.objectives.common import LossModule
 
 from activeperc_env.core import HOLD
 
-__all__ = ["LOOKER_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
+__all__ = ["LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
 
 LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
 """What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
+VIEW_CREDITS = ("every_look", "best_look")
+"""The credits that value the view of every look: D2 must record them (``make_env(look_views=True)``)."""
 
 _REDUCTIONS = ("mean", "sum")
 
@@ -423,7 +425,7 @@ class MetaEvaluationLoss(LossModule):
                 raise ValueError(
                     "tensordict (D2) has no look that a move followed: every valid step ended its episode."
                 )
-            if self.credit in ("every_look", "best_look"):
+            if self.credit in VIEW_CREDITS:
                 return self._every_look(record, mask, baseline, num, num_ref)
             step_credit = meta = self._look_values(record, mask)  # each look's own value difference
 

@@ -34,7 +34,7 @@ from torchrl.objectives import A2CLoss, ValueEstimators
 from activeperc_env.core import JOINT_ACTIONS, usable_cpus
 from activeperc_rl.collection import Rollouts
 from activeperc_rl.envs import LOOKER, MOVER
-from activeperc_rl.losses import JointA2CLoss, MetaEvaluationLoss
+from activeperc_rl.losses import VIEW_CREDITS, JointA2CLoss, MetaEvaluationLoss
 from activeperc_rl.models import (
     HOLD,
     JOINT,
@@ -490,7 +490,7 @@ class Meta(_MoverA2C):
             looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon),
             seed_offset=e2_seed_offset,
             name="E2's collector",
-            look_views=self.config.looker_credit in ("every_look", "best_look"),
+            look_views=self.config.looker_credit in VIEW_CREDITS,
         )
 
     def iterate(self) -> Iteration:
