@@ -100,10 +100,9 @@ def _steer(bearing: np.ndarray, forward_ok: np.ndarray, config: EnvConfig) -> np
     slides without turning (v3) slides toward a bearing beyond 45 degrees instead, and sideways where forward is
     blocked."""
     if config.version in names.SLIDING_VERSIONS:
-        action = np.where(bearing > math.pi / 4, TURN_LEFT, np.where(bearing < -math.pi / 4, TURN_RIGHT, FORWARD))
-        blocked = (action == FORWARD) & ~forward_ok
-        return np.where(blocked, np.where(bearing >= 0, TURN_LEFT, TURN_RIGHT), action)
-    tolerance = 0.75 * math.radians(config.turn_speed) / config.control_hz
+        tolerance = math.pi / 4
+    else:
+        tolerance = 0.75 * math.radians(config.turn_speed) / config.control_hz
     action = np.where(bearing > tolerance, TURN_LEFT, np.where(bearing < -tolerance, TURN_RIGHT, FORWARD))
     blocked = (action == FORWARD) & ~forward_ok
     return np.where(blocked, np.where(bearing >= 0, TURN_LEFT, TURN_RIGHT), action)
