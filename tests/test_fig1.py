@@ -406,6 +406,19 @@ def test_aggregate_refuses_to_average_budgets(aggregate, tmp_path, capsys):
     assert "summary.csv, line 3: a row with missing or extra values" in capsys.readouterr().err
 
 
+def test_difference_table_pairs_seeds(aggregate):
+    def row(method, seed, success):
+        return {"method": method, "fov": "60", "seed": str(seed), "final_success_rate": str(success)}
+
+    rows = [row("fixed_forward", s, v) for s, v in ((0, 0.5), (1, 0.4), (2, 0.6))]
+    rows += [row("meta_eps0.3", s, v) for s, v in ((0, 0.7), (1, 0.5), (3, 0.9))]  # seed 3 has no reference
+    table = aggregate.difference_table(rows)
+    # differences 0.2 and 0.1 over seeds 0 and 1: mean 0.15, t95(1) * std / sqrt(2) = 12.706 * 0.0707 / 1.414
+    assert "| 60 | meta_eps0.3 | 0,1 | +0.150 ± 0.635 (-0.485 to +0.785) |" in table
+    assert "fixed_forward |" not in table.split("\n", 2)[2]
+    assert aggregate.difference_table([row("fixed_forward", 0, 0.5)]) == ""
+
+
 def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
     with pytest.raises(SystemExit):
         sweep.main(["--seeds", "0", "-1", "--dry-run"])

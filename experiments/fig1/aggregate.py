@@ -226,6 +226,24 @@ def summary_table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def difference_table(rows: list[dict], reference: str = "fixed_forward") -> str:
+    """The Markdown table of each method's held-out success minus ``reference``'s at the same field of view, paired
+    by seed: mean and 95 % interval over the seeds both ran (empty when no method shares a seed with it)."""
+    success = {(r["method"], int(r["fov"]), int(r["seed"])): float(r["final_success_rate"]) for r in rows}
+    lines = []
+    for (method, fov), runs in sorted(group_runs(rows).items(), key=lambda item: item[0][1]):
+        seeds = [int(r["seed"]) for r in runs if (reference, fov, int(r["seed"])) in success]
+        if method == reference or not seeds:
+            continue
+        mean, half = mean_ci([success[method, fov, s] - success[reference, fov, s] for s in seeds])
+        interval = "" if math.isnan(half) else f" ± {half:.3f} ({mean - half:+.3f} to {mean + half:+.3f})"
+        lines.append(f"| {fov} | {method} | {','.join(map(str, seeds))} | {mean:+.3f}{interval} |")
+    if not lines:
+        return ""
+    header = f"| fov | method | seeds | held-out success minus {reference}'s, same seed |\n|---|---|---|---|\n"
+    return header + "\n".join(lines) + "\n"
+
+
 def replace_between(text: str, marker: str, content: str) -> str:
     """``text`` with what lies between ``<!-- marker -->`` and ``<!-- /marker -->`` replaced by ``content``."""
     start, end = f"<!-- {marker} -->\n", f"<!-- /{marker} -->"
@@ -275,6 +293,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))
     print(table, end="")
+    differences = difference_table(rows)
+    if differences:
+        print("\n" + differences, end="")
     if doc is None:
         print(f"wrote {figure}")
         return 0
