@@ -22,6 +22,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("scripted_looker_training.py", ["--frames", "0"], "--frames and --episodes must be >= 1"),
         ("scripted_looker_training.py", ["--looker", "peek"], "invalid choice: 'peek'"),
         ("look_values.py", ["RUN", "--cycles", "0"], "--rooms and --cycles must be >= 1"),
+        ("pan_vs_bearing.py", ["RUN", "--episodes", "0"], "--episodes=0 must be >= 1"),
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
     ],
 )
@@ -114,3 +115,29 @@ def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
     lines = done.stdout.splitlines()
     assert lines[0].endswith("epsilon 0.3") and "Q(left)-Q(hold)" in lines[1]
     assert lines[2].startswith("not in view") and lines[2].endswith("0.00 1.00 0.00")  # the untrained phi2 holds
+
+
+def test_pan_vs_bearing_plays_the_evaluations_episodes(tmp_path):
+    import numpy as np
+
+    from activeperc_rl import cli
+    from activeperc_rl.evaluate import evaluate, load_policy
+
+    sys.path.insert(0, str(EXPERIMENTS))
+    import pan_vs_bearing
+
+    out = tmp_path / "run"
+    tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
+    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "12", "--out", str(out)]) == 0
+    argv = [str(out), "--episodes", "6", "--figure", str(tmp_path / "f.png"), "--csv", str(tmp_path / "r.csv")]
+    assert pan_vs_bearing.main(argv) == 0
+    config, mover, looker = load_policy(out)
+    learned = pan_vs_bearing.play(config, mover, looker, 6, seed=0)
+    held = pan_vs_bearing.play(config, mover, pan_vs_bearing.FixedLooker(), 6, seed=0)
+    # the same episodes and sampling as activeperc-eval's: the same success rate
+    assert learned["success"].mean() == evaluate(config, mover, looker, episodes=6)["success_rate"]
+    assert len(held["success"]) == 6 and not held["looked"].any() and (held["pan"] == 0).all()
+    assert np.abs(learned["bearing"]).max() <= 180 and np.abs(learned["pan"]).max() <= config.env.pan_range + 1e-3
+    assert len(learned["pan"]) == len(learned["seen"]) <= 6 * 12
+    rows = (tmp_path / "r.csv").read_text().splitlines()
+    assert rows[0].startswith("run,looker,episodes") and len(rows) == 3 and (tmp_path / "f.png").stat().st_size > 0
