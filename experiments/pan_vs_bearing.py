@@ -6,9 +6,10 @@ Run from the repository root::
     python experiments/pan_vs_bearing.py RUN --episodes 200 --figure docs/figures/pan_vs_bearing.png \
         --csv experiments/results/pan_vs_bearing.csv
 
-The run's mover plays ``--episodes`` held-out episodes (``activeperc-eval``'s layouts) twice: with the run's own
-looker and with the camera held forward. After every cycle it records the goal's bearing from the robot's heading,
-the camera's pan, whether the cycle's look panned, and whether the goal showed in the mover's view. The figure
+The run's mover plays ``--episodes`` held-out episodes (those of the run's final evaluation: ``--seed`` is the run's
+seed unless given) twice: with the run's own looker and with the camera held forward. After every cycle it records
+the goal's bearing from the robot's heading, the camera's pan, whether the cycle's look panned, and whether the
+goal showed in the mover's view. The figure
 has the learned looker's pan against the goal's bearing (a tracking camera lies on the diagonal, a held one on
 the zero line) and, for both lookers, how often the goal is in view at each bearing. Printed (and ``--csv``):
 per looker, the held-out success rate, the pan rate (looks that are not 'hold') and the share of cycles with the
@@ -137,7 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog="pan_vs_bearing.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("run", help="a run directory (holding checkpoint.pt) of a method with a looker")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes per looker (200)")
-    parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
+    parser.add_argument(
+        "--seed", type=whole_number, help="seed of the layouts and the sampling (default: the run's, as its eval.json)"
+    )
     parser.add_argument("--figure", type=Path, help="write the figure here (PNG)")
     parser.add_argument("--csv", type=Path, help="add the two rows to this CSV (replacing the run's rows)")
     args = parser.parse_args(argv)
@@ -149,8 +152,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(error))
     if looker is None:
         parser.error(f"{args.run!r} is a run of {config.method!r}, whose policy writes the look itself")
+    seed = config.seed if args.seed is None else args.seed
     records = {
-        name: play(config, mover_policy, module, args.episodes, args.seed)
+        name: play(config, mover_policy, module, args.episodes, seed)
         for name, module in (("learned", looker), ("camera held", FixedLooker()))
     }
     rows = [summary(args.run, name, record, config.env.fov) for name, record in records.items()]
