@@ -20,7 +20,7 @@ DOCS = ROOT / "docs"
 FIG1 = "experiments/fig1/results"
 sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  # the scripts' own table makers
 
-from aggregate import mean_ci, replace_between, summary_table, with_reference  # noqa: E402
+from aggregate import difference_table, mean_ci, replace_between, summary_table, with_reference  # noqa: E402
 from looker_stats import markdown_table  # noqa: E402
 from value_of_looking import read_csv as read_looking  # noqa: E402
 from value_of_looking import table as looking_table  # noqa: E402
@@ -180,6 +180,39 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
                 "phi2": row["phi2"],
             }
     return outcomes
+
+
+V3_SWEEP = "experiments/results/v3_best_look"
+
+
+def v3_sweep() -> str:
+    """The room v3 sweep of ``meta --looker-credit best_look`` against ``fixed_forward``: results over seeds and
+    the paired differences."""
+    rows = read(f"{V3_SWEEP}/summary.csv")
+    return summary_table(rows) + "\n" + difference_table(rows)
+
+
+def v3_looks() -> str:
+    """What each seed's learned looker did on the held-out episodes, beside the camera held forward
+    (``experiments/pan_vs_bearing.py``)."""
+    rows = [
+        [
+            f"{Path(r['run']).name}, {r['looker']}",
+            r["success"],
+            r["pan_rate"],
+            r["goal_in_view"],
+            r["in_view_outside_fov"],
+        ]
+        for r in read(f"{V3_SWEEP}/pan_vs_bearing.csv")
+    ]
+    header = [
+        "`meta` run, looker",
+        "held-out success",
+        "pan rate",
+        "goal in view",
+        "goal in view, bearing outside the forward field of view",
+    ]
+    return markdown(header, rows)
 
 
 def portable_speed() -> str:
@@ -441,6 +474,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         "env.md",
         lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking_v3.csv")) + "\n",
     ),
+    "room-v3-sweep": ("reproduction.md", v3_sweep),
+    "room-v3-looks": ("reproduction.md", v3_looks),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
