@@ -76,8 +76,8 @@ def evaluate(
         check_writable(video)  # before the episodes are played, not after
     if mover_policy is None:
         mover_policy, looker = RandomPolicy((MOVER, LOOKER)), None
-    rooms = min(episodes, MAX_ROOMS)
-    quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
+    quota = room_quotas(episodes)
+    rooms = len(quota)
     returns, successes, lengths = ([[] for _ in range(rooms)] for _ in range(3))
     frames = []
     env = make_env(
@@ -122,6 +122,13 @@ def evaluate(
         "mean_return": float(np.mean(flat)),
         "mean_length": float(np.mean(np.concatenate([np.asarray(n) for n in lengths]))),
     }
+
+
+def room_quotas(episodes: int) -> np.ndarray:
+    """How many of ``episodes`` each evaluation room plays: ``min(episodes, MAX_ROOMS)`` rooms, the first ones one
+    more where they do not divide evenly."""
+    rooms = min(episodes, MAX_ROOMS)
+    return np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
 
 
 def load_policy(path: str | Path, device="cpu"):

@@ -35,7 +35,7 @@ from activeperc_env.core import HOLD  # noqa: E402
 from activeperc_env.scripted import goal_in_view, wrap  # noqa: E402
 from activeperc_rl.atomic import atomic_path  # noqa: E402
 from activeperc_rl.envs import LOOKER, MOVER, make_env  # noqa: E402
-from activeperc_rl.evaluate import MAX_ROOMS, load_policy  # noqa: E402
+from activeperc_rl.evaluate import load_policy, room_quotas  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
 
 COLUMNS = ("run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_outside_fov", "cycles")
@@ -55,8 +55,8 @@ def goal_bearings(sim, rooms: int) -> np.ndarray:
 def play(config, mover_policy, looker, episodes: int, seed: int) -> dict[str, np.ndarray]:
     """Play ``episodes`` held-out episodes; per cycle: ``bearing``, ``pan`` (degrees), ``looked``, ``seen``; per
     episode: ``success``."""
-    rooms = min(episodes, MAX_ROOMS)
-    quota = np.full(rooms, episodes // rooms) + (np.arange(rooms) < episodes % rooms)
+    quota = room_quotas(episodes)
+    rooms = len(quota)
     finished = np.zeros(rooms, dtype=np.int64)
     cycles = {"bearing": [], "pan": [], "looked": [], "seen": []}
     success = []
