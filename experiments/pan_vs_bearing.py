@@ -19,7 +19,6 @@ goal in view, overall and with the goal outside the forward camera's field of vi
 from __future__ import annotations
 
 import csv
-import math
 from pathlib import Path
 
 import matplotlib
@@ -42,14 +41,13 @@ COLUMNS = ("run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "
 BEARING_BINS = np.linspace(-180, 180, 25)
 
 
-def goal_bearings(sim, rooms: int) -> np.ndarray:
-    """The goal's bearing from each room's robot heading, degrees (positive to the left)."""
-    bearings = []
-    for index in range(rooms):
-        xy, heading, _ = sim.pose(index)
-        dx, dy = sim.goal_xy(index) - xy
-        bearings.append(wrap(math.atan2(dy, dx) - heading))
-    return np.degrees(np.asarray(bearings))
+def bearing_and_pan(sim) -> tuple[np.ndarray, np.ndarray]:
+    """The goal's bearing from each room's robot heading and the camera's pan, degrees (positive to the left), from
+    the rooms' true state (``Simulator.state``: x, y, cos and sin of the heading, pan, the goal's x and y, ...)."""
+    state = sim.state().astype(np.float64)
+    heading = np.arctan2(state[:, 3], state[:, 2])
+    bearing = wrap(np.arctan2(state[:, 6] - state[:, 1], state[:, 5] - state[:, 0]) - heading)
+    return np.degrees(bearing), np.degrees(state[:, 4])
 
 
 def play(config, mover_policy, looker, episodes: int, seed: int) -> dict[str, np.ndarray]:
@@ -69,8 +67,9 @@ def play(config, mover_policy, looker, episodes: int, seed: int) -> dict[str, np
                 td = env.step(mover_policy(td))
                 counted = finished < quota
                 images = td.get(("next", MOVER, "observation", "image")).numpy()
-                cycles["bearing"].append(goal_bearings(env.sim, rooms)[counted])
-                cycles["pan"].append(np.degrees(env.sim.pan()[:, 0])[counted])
+                bearing, pan = bearing_and_pan(env.sim)
+                cycles["bearing"].append(bearing[counted])
+                cycles["pan"].append(pan[counted])
                 cycles["looked"].append((td.get(("next", LOOKER, "action")).reshape(-1).numpy() != HOLD)[counted])
                 cycles["seen"].append(~np.isnan(goal_in_view(images, config.env.fov)[0])[counted])
                 done = td.get(("next", "done")).reshape(-1).numpy() & counted
