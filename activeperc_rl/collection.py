@@ -72,6 +72,7 @@ class WorkerEnv:
     looker: nn.Module | None
     look_views: bool = False
     backend: str = "mujoco"
+    frame_stack: int = 1
 
     def __call__(self):
         """Build the worker's env (TorchRL calls this in the worker)."""
@@ -89,6 +90,7 @@ class WorkerEnv:
             nthread=self.threads,
             look_views=self.look_views,
             backend=self.backend,
+            frame_stack=self.frame_stack,
             config=self.config,
         )
 
@@ -111,6 +113,7 @@ class Rollouts:
         name: what error messages call these rollouts (``"E2's collector"``).
         look_views: record what each look would have shown (``make_env``'s ``look_views``).
         backend: the rooms' physics and renderer (``make_env``'s ``backend``).
+        frame_stack: the latest cycles' views in each observation (``make_env``'s ``frame_stack``).
     """
 
     def __init__(
@@ -130,6 +133,7 @@ class Rollouts:
         name: str = "collector",
         look_views: bool = False,
         backend: str = "mujoco",
+        frame_stack: int = 1,
     ):
         if collector not in COLLECTORS:
             raise ValueError(f"collector={collector!r} is invalid: expected one of {COLLECTORS}")
@@ -149,6 +153,7 @@ class Rollouts:
                 seed=env_seed,
                 look_views=look_views,
                 backend=backend,
+                frame_stack=frame_stack,
                 config=config,
             )
             try:
@@ -166,7 +171,7 @@ class Rollouts:
         else:
             threads = max(1, usable_cpus() // workers)
             envs = [
-                WorkerEnv(config, n, first, env_seed, torch_seed + k, threads, looker, look_views, backend)
+                WorkerEnv(config, n, first, env_seed, torch_seed + k, threads, looker, look_views, backend, frame_stack)
                 for k, (first, n) in enumerate(split_rooms(num_envs, workers))
             ]
             frames = [env.num_rooms * rollout_length for env in envs]

@@ -27,6 +27,7 @@ from activeperc_env.core import MAX_ENVS
 from activeperc_env.warp_backend import BACKENDS
 from activeperc_rl.atomic import atomic_path
 from activeperc_rl.collection import COLLECTORS
+from activeperc_rl.envs import MAX_FRAME_STACK
 from activeperc_rl.losses import LOOKER_CREDITS
 from activeperc_rl.methods import METHODS
 
@@ -127,6 +128,9 @@ class TrainConfig:
     bearing_bins: int = 0
     """Bins of the mover's bearing layout (0: none): its networks (and the joint agent's) lay the view's features
     out by bearing from the robot's heading, wherever the camera looks."""
+    frame_stack: int = 1
+    """Views of the latest cycles that every network reads, stacked on the image's channels (1: the current view
+    only): a memory of where the goal was (make_env's frame_stack); needs bearing_bins 0."""
     success_window: int = 100
     """Finished episodes the logged success rate and mean return are averaged over."""
     checkpoint_every: float = 60.0
@@ -205,6 +209,10 @@ class TrainConfig:
             ),
             "hidden_size": (_int_in(self.hidden_size, 1, 2**16), "an int in 1 .. 65536"),
             "bearing_bins": (_int_in(self.bearing_bins, 0, 360), "an int in 0 .. 360"),
+            "frame_stack": (
+                _int_in(self.frame_stack, 1, MAX_FRAME_STACK) and (self.frame_stack == 1 or self.bearing_bins == 0),
+                f"an int in 1 .. {MAX_FRAME_STACK}, 1 with bearing_bins (which lays out one view)",
+            ),
             "success_window": (_int_in(self.success_window, 1, 2**31), "an int in 1 .. 2**31"),
             "checkpoint_every": (is_number(self.checkpoint_every) and self.checkpoint_every > 0, "seconds > 0"),
             "eval_episodes": (is_int(self.eval_episodes) and self.eval_episodes >= 0, "an int >= 0"),

@@ -22,6 +22,7 @@ MOVER, LOOKER = "mover", "looker"
 
 
 SPLITS = ("train", "eval")
+MAX_FRAME_STACK = 16
 
 
 def make_env(
@@ -34,6 +35,7 @@ def make_env(
     nthread: int = 0,
     look_views: bool = False,
     backend: str = "mujoco",
+    frame_stack: int = 1,
     config: EnvConfig | None = None,
     **env_config,
 ):
@@ -52,6 +54,8 @@ def make_env(
         look_views: in looker mode, record what each look would have shown (see :class:`ActivePerceptionEnv`).
         backend: the rooms' physics and renderer: ``"mujoco"`` (CPU physics, OpenGL) or ``"warp"`` (MuJoCo Warp,
             on the GPU when ``device`` is one, else on Warp's CPU device).
+        frame_stack: the latest cycles' views in each observation (1: the current view only; see
+            :class:`ActivePerceptionEnv`).
         config: the room, as an :class:`~activeperc_env.EnvConfig`; or else
         **env_config: any :class:`~activeperc_env.EnvConfig` field (the others at their defaults).
     """
@@ -69,6 +73,7 @@ def make_env(
         first_room=first_room,
         look_views=look_views,
         backend=backend,
+        frame_stack=frame_stack,
     )
     if seed is not None:
         env.set_seed(seed)
@@ -90,6 +95,10 @@ class ActivePerceptionEnv(EnvBase):
             ``"pan"`` (3, 1) that 'pan left', 'hold' and 'pan right' would have given the mover in each cycle
             (:meth:`~activeperc_env.Simulator.look_views`): the views meta's credit for every look values.
         backend: the simulator's backend (:func:`make_env`).
+        frame_stack: the views of the latest ``frame_stack`` cycles in every observation: its ``image`` stacks them
+            on the channels, ``(*batch, H, W, 3 * frame_stack)`` oldest first, and its ``pan`` holds their pans,
+            ``(*batch, frame_stack)``; the looker's views and ``look_views`` end with the view they show. A room's
+            first observation repeats its start view. The range stays the current reading.
     """
 
     def __init__(
@@ -103,6 +112,7 @@ class ActivePerceptionEnv(EnvBase):
         first_room: int = 0,
         look_views: bool = False,
         backend: str = "mujoco",
+        frame_stack: int = 1,
     ):
         if split not in SPLITS:
             raise ValueError(f"split={split!r} is invalid: expected one of {SPLITS}")
@@ -110,7 +120,10 @@ class ActivePerceptionEnv(EnvBase):
             raise ValueError(f"num_envs={num_envs!r} is invalid: expected an int >= 1")
         if not is_int(first_room) or first_room < 0:
             raise ValueError(f"first_room={first_room!r} is invalid: expected an int >= 0")
+        if not is_int(frame_stack) or not 1 <= frame_stack <= MAX_FRAME_STACK:
+            raise ValueError(f"frame_stack={frame_stack!r} is invalid: expected an int in 1 .. {MAX_FRAME_STACK}")
         num_envs, first_room = int(num_envs), int(first_room)
+        self.frame_stack = int(frame_stack)
         super().__init__(device=torch_device(device), batch_size=[num_envs])
         self.first_room = first_room
         self.split = split
@@ -125,6 +138,9 @@ class ActivePerceptionEnv(EnvBase):
         self._terminated = np.zeros(num_envs, dtype=bool)
         self._truncated = np.zeros(num_envs, dtype=bool)
         self._seed_rngs = [np.random.default_rng() for _ in range(num_envs)]
+        past = self.frame_stack - 1  # each room's views of the cycles before, oldest first
+        self._past_images = np.zeros((num_envs, config.height, config.width, 3 * past), dtype=np.uint8)
+        self._past_pans = np.zeros((num_envs, past), dtype=np.float32)
         self._looker = None
         self._looker_spec = Composite(shape=self.batch_size, device=self.device)
         self._make_specs()
@@ -135,9 +151,10 @@ class ActivePerceptionEnv(EnvBase):
     def _make_specs(self) -> None:
         n, cfg = self.batch_size, self.config
         limit = math.radians(cfg.pan_range)
+        k = self.frame_stack
         self._obs_spec = Composite(
-            image=Bounded(0, 255, (*n, cfg.height, cfg.width, 3), dtype=torch.uint8, device=self.device),
-            pan=Bounded(-limit, limit, (*n, 1), dtype=torch.float32, device=self.device),
+            image=Bounded(0, 255, (*n, cfg.height, cfg.width, 3 * k), dtype=torch.uint8, device=self.device),
+            pan=Bounded(-limit, limit, (*n, k), dtype=torch.float32, device=self.device),
             shape=n,
             device=self.device,
         )
@@ -217,7 +234,7 @@ class ActivePerceptionEnv(EnvBase):
             looks = len(LOOKER_ACTIONS)
             spec["look_views"] = Composite(
                 image=Bounded(0, 255, (*n, looks, *image.shape[1:]), dtype=torch.uint8, device=self.device),
-                pan=Bounded(pan.space.low.min(), pan.space.high.max(), (*n, looks, 1), device=self.device),
+                pan=Bounded(pan.space.low.min(), pan.space.high.max(), (*n, looks, *pan.shape[1:]), device=self.device),
                 shape=n,
                 device=self.device,
             )
@@ -255,8 +272,11 @@ class ActivePerceptionEnv(EnvBase):
             self.sim.reset(ids, seeds)
             self.episode_seeds[ids] = seeds
             self._terminated[ids] = self._truncated[ids] = False
+            start = self.sim.observe(ids)
+            self._past_images[ids] = np.tile(start["image"], self.frame_stack - 1)
+            self._past_pans[ids] = np.tile(start["pan"], self.frame_stack - 1)
             index = torch.from_numpy(ids)
-            for key, value in self.sim.observe(ids).items():
+            for key, value in self._stacked(start, ids).items():
                 observation[key][index] = torch.from_numpy(value)
         return self._reset_output(observation)
 
@@ -288,11 +308,13 @@ class ActivePerceptionEnv(EnvBase):
                 written = self._looker(record)
             record = (record if written is None else written).get(LOOKER)
             if self.look_views:
-                views, pans = self.sim.look_views()
+                views, pans = self._stacked_look_views()
                 record.set("look_views", {"image": torch.from_numpy(views), "pan": torch.from_numpy(pans)})
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
-        out.set((MOVER, "observation"), self._observe())
+        observation = self._observe()
+        self._remember(observation, ids)
+        out.set((MOVER, "observation"), observation)
         out.update({MOVER: self._outcomes()})
         for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
             rewards = np.zeros(n, dtype=np.float32)
@@ -327,6 +349,8 @@ class ActivePerceptionEnv(EnvBase):
             "seed_rngs": [rng.bit_generator.state for rng in self._seed_rngs],
             "terminated": self._terminated.copy(),
             "truncated": self._truncated.copy(),
+            "past_images": self._past_images.copy(),
+            "past_pans": self._past_pans.copy(),
         }
 
     def load_rooms_state(self, state: dict) -> None:
@@ -340,6 +364,12 @@ class ActivePerceptionEnv(EnvBase):
             rng.bit_generator.state = saved
         self._terminated[:] = state["terminated"]
         self._truncated[:] = state["truncated"]
+        if self.frame_stack > 1:  # states saved before frame stacks existed hold none (their envs stacked none)
+            for key in ("past_images", "past_pans"):
+                if np.shape(state[key]) != np.shape(getattr(self, f"_{key}")):
+                    raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit this env's frame stack")
+            self._past_images[:] = state["past_images"]
+            self._past_pans[:] = state["past_pans"]
 
     def random_state(self) -> torch.Tensor:
         """The torch random state of the process this env steps in: in a collector's worker, the stream its policy
@@ -368,9 +398,38 @@ class ActivePerceptionEnv(EnvBase):
         return TensorDict(values, batch_size=self.batch_size).to(self.device)
 
     def _observe(self) -> TensorDict:
-        """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`) on ``device``."""
-        observation = {key: torch.from_numpy(value) for key, value in self.sim.observe().items()}
+        """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`), after the room's past
+        views when it stacks frames, on ``device``."""
+        stacked = self._stacked(self.sim.observe(), np.arange(self.num_envs))
+        observation = {key: torch.from_numpy(value) for key, value in stacked.items()}
         return TensorDict(observation, batch_size=self.batch_size, device=self.device)
+
+    def _stacked(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, np.ndarray]:
+        """The rooms ``ids``' ``observation`` with their past views before its image and pan."""
+        if self.frame_stack == 1:
+            return observation
+        image = np.concatenate([self._past_images[ids], observation["image"]], axis=-1)
+        pan = np.concatenate([self._past_pans[ids], observation["pan"]], axis=-1)
+        return observation | {"image": image, "pan": pan}
+
+    def _stacked_look_views(self) -> tuple[np.ndarray, np.ndarray]:
+        """The simulator's :meth:`~activeperc_env.Simulator.look_views` of every room, each after the room's past
+        views: images ``(n, 3, H, W, 3 * frame_stack)`` and pans ``(n, 3, frame_stack)``."""
+        views, pans = self.sim.look_views()
+        if self.frame_stack == 1:
+            return views, pans
+        looks = views.shape[1]
+        past_images = np.repeat(self._past_images[:, None], looks, axis=1)
+        past_pans = np.repeat(self._past_pans[:, None], looks, axis=1)
+        return np.concatenate([past_images, views], axis=-1), np.concatenate([past_pans, pans], axis=-1)
+
+    def _remember(self, observation: TensorDict, ids: np.ndarray) -> None:
+        """Keep the latest views of the rooms ``ids`` (a cycle's last observation) as their past views."""
+        if self.frame_stack == 1 or not len(ids):
+            return
+        image, pan = observation["image"].cpu().numpy(), observation["pan"].cpu().numpy()
+        self._past_images[ids] = image[ids, ..., 3:]
+        self._past_pans[ids] = pan[ids, 1:]
 
 
 # TorchRL's metaclass shows the constructor as (*args, **kwargs) to help() and IDEs: give them its real arguments

@@ -42,6 +42,7 @@ def evaluate(
     device="cpu",
     video: str | Path | None = None,
     progress: bool = False,
+    on_cycle=None,
 ) -> dict:
     """Play ``episodes`` held-out episodes and summarise them.
 
@@ -55,6 +56,8 @@ def evaluate(
         device: where the policies run.
         video: write room 0's first episode (first-person view beside the bird's-eye map) here.
         progress: show a progress bar of the finished episodes on stderr while it runs (gone when it ends).
+        on_cycle: called after every cycle as ``on_cycle(env, td, counted)``: the env, the step's tensordict (its
+            ``"next"`` entries before any reset) and a bool array of the rooms whose episode is one of those played.
 
     Returns:
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
@@ -81,7 +84,14 @@ def evaluate(
     returns, successes, lengths = ([[] for _ in range(rooms)] for _ in range(3))
     frames = []
     env = make_env(
-        rooms, device=device, looker=looker, seed=seed, split="eval", backend=config.backend, config=config.env
+        rooms,
+        device=device,
+        looker=looker,
+        seed=seed,
+        split="eval",
+        backend=config.backend,
+        frame_stack=config.frame_stack,
+        config=config.env,
     )
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
     try:
@@ -95,6 +105,8 @@ def evaluate(
                 td = mover_policy(td)
                 td = env.step(td)
                 steps += 1
+                if on_cycle is not None:
+                    on_cycle(env, td, np.array([len(r) < q for r, q in zip(returns, quota, strict=True)]))
                 if video is not None and not returns[0]:
                     # before an auto-reset replaces room 0
                     frames.append(_video_frame(env, td.get(("next", MOVER, "observation", "image"))))
@@ -151,8 +163,9 @@ def load_policy(path: str | Path, device="cpu"):
 
 
 def _video_frame(env, images: torch.Tensor) -> np.ndarray:
-    """Room 0's bird's-eye map with its first-person view (``images[0]``, the mover's) on the right."""
-    return side_by_side(env.sim.render_map(0), images[0].cpu().numpy())
+    """Room 0's bird's-eye map with its first-person view (``images[0]``, the mover's; a frame stack's latest) on the
+    right."""
+    return side_by_side(env.sim.render_map(0), images[0, ..., -3:].cpu().numpy())
 
 
 def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:

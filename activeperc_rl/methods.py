@@ -93,8 +93,9 @@ class Method:
     def _encoder(self, bearing: bool = True):
         """A fresh encoder (``bearing``: with the mover's bearing layout), built on the CPU (the same initial weights
         on every device); the networks around it move to the device."""
-        bins = self.config.bearing_bins if bearing else 0
-        return make_encoder(self.config.env, self.config.channels, self.config.hidden_size, bins)
+        cfg = self.config
+        bins = cfg.bearing_bins if bearing else 0
+        return make_encoder(cfg.env, cfg.channels, cfg.hidden_size, bins, cfg.frame_stack)
 
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
@@ -164,6 +165,7 @@ class Method:
             device=self.device,
             name=name,
             look_views=look_views,
+            frame_stack=cfg.frame_stack,
         )
         self.collectors.append(collector)
         return collector

@@ -27,13 +27,16 @@ class Encoder(nn.Module):
     """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan and the range readings scaled to
     [0, 1] (where the room has a range sensor), then a linear layer.
 
+    With ``frames`` > 1 it reads a frame stack (``make_env(frame_stack=frames)``): the views of the latest cycles on
+    the image's channels, ``(*batch, H, W, 3 * frames)``, their pans ``(*batch, frames)``, and convolves them together.
+
     With ``bearing_bins`` the conv features are first laid out by bearing from the robot's heading instead of by
     column of the view: ``bearing_bins`` bins span every bearing the camera can see, and each bin takes the
     features of the view's column that looks that way (the pan plus the column's angle from the camera's axis),
     zero where the camera does not look. A goal seen 40 degrees to the left then lands in the same features
     whether the camera looks ahead or 30 degrees left (:class:`BearingLayout`).
 
-    It reads the images as the env gives them, of shape ``(*batch, height, width, 3)`` with values 0 to 255
+    It reads the images as the env gives them, of shape ``(*batch, height, width, 3 * frames)`` with values 0 to 255
     (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the ``(3, H, W)`` images
     of TorchRL's ``ToTensorImage``, which are scaled to [0, 1] too) raises ``ValueError``.
 
@@ -46,6 +49,7 @@ class Encoder(nn.Module):
         bearing_bins: bins of the bearing layout (0: the features as the conv stack gives them).
         fov: the camera's horizontal field of view, degrees (read with ``bearing_bins``).
         pan_range: the camera's pan limit, degrees (read with ``bearing_bins``).
+        frames: the views stacked in each observation (``bearing_bins`` needs 1: it lays out one view).
     """
 
     KERNELS = ((8, 4), (4, 2), (3, 1))
@@ -61,11 +65,15 @@ class Encoder(nn.Module):
         bearing_bins: int = 0,
         fov: float = 60.0,
         pan_range: float = 120.0,
+        frames: int = 1,
     ):
         super().__init__()
-        self.image_shape = (height, width, 3)
+        if bearing_bins and frames > 1:
+            raise ValueError(f"bearing_bins={bearing_bins} lays out one view: it needs frames=1, got {frames}")
+        self.image_shape = (height, width, 3 * frames)
+        self.frames = frames
         self.range_rays, self.range_max = range_rays, range_max
-        layers, in_ch, h, w = [], 3, height, width
+        layers, in_ch, h, w = [], 3 * frames, height, width
         for i, out_ch in enumerate(channels):
             kernel, stride = self.KERNELS[min(i, len(self.KERNELS) - 1)]
             if h < kernel or w < kernel:
@@ -75,21 +83,22 @@ class Encoder(nn.Module):
         self.conv = nn.Sequential(*layers)
         self.layout = BearingLayout(bearing_bins, h, fov, pan_range) if bearing_bins else None
         columns = bearing_bins or w
-        self.linear = nn.Sequential(nn.Linear(in_ch * h * columns + 2 + range_rays, hidden_size), nn.ReLU())
+        self.linear = nn.Sequential(nn.Linear(in_ch * h * columns + 2 * frames + range_rays, hidden_size), nn.ReLU())
 
     def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
-        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3)``, ``pan (*batch, 1)`` and, with
-        a range sensor, ``ranges (*batch, range_rays)``."""
+        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3 * frames)``, ``pan (*batch,
+        frames)`` and, with a range sensor, ``ranges (*batch, range_rays)``."""
         if tuple(image.shape[-3:]) != self.image_shape:
             raise ValueError(
                 f"the encoder reads images of shape (*batch, {', '.join(map(str, self.image_shape))}) with values "
-                f"0 to 255, as the env gives them; got shape {tuple(image.shape)} (leave out transforms that "
-                "permute or scale the image, such as ToTensorImage)"
+                f"0 to 255, as the env gives them (frame_stack={self.frames}); got shape {tuple(image.shape)} (give "
+                "the env the encoder's frame_stack, and leave out transforms that permute or scale the image, such as "
+                "ToTensorImage)"
             )
         batch = image.shape[:-3]
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)
-        pan = pan.reshape(-1, 1).to(x.dtype)
+        pan = pan.reshape(-1, self.frames).to(x.dtype)
         if self.layout is not None:
             x = self.layout(x, pan)
         parts = [x.flatten(1), torch.sin(pan), torch.cos(pan)]
@@ -145,8 +154,10 @@ class Head(nn.Module):
         return self.out(self.encoder(image, pan, ranges))
 
 
-def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int, bearing_bins: int = 0) -> Encoder:
-    """An :class:`Encoder` sized for ``env``'s observation (``bearing_bins``: see :class:`Encoder`)."""
+def make_encoder(
+    env: EnvConfig, channels: tuple[int, ...], hidden_size: int, bearing_bins: int = 0, frames: int = 1
+) -> Encoder:
+    """An :class:`Encoder` sized for ``env``'s observation (``bearing_bins``, ``frames``: see :class:`Encoder`)."""
     return Encoder(
         env.height,
         env.width,
@@ -157,6 +168,7 @@ def make_encoder(env: EnvConfig, channels: tuple[int, ...], hidden_size: int, be
         bearing_bins,
         env.fov,
         env.pan_range,
+        frames,
     )
 
 

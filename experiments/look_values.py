@@ -95,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         split="eval",
         look_views=True,
+        frame_stack=config.frame_stack,
         config=config.env,
     )
     torch.manual_seed(args.seed)
@@ -106,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     record = data["next", LOOKER].reshape(-1)[~data["next", "done"].reshape(-1)]  # looks that a move followed
     values = look_values(method.critic, record)
     gain = (values - values[:, HOLD : HOLD + 1]).numpy()
-    groups = goal_groups(record["observation", "image"].numpy(), config.env.fov)
+    groups = goal_groups(record["observation", "image"][..., -3:].numpy(), config.env.fov)  # a frame stack's latest
     greedy = None
     phi2 = method.modules.get("phi2")
     if phi2 is not None:

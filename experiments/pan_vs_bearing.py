@@ -26,15 +26,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from torchrl.envs.utils import ExplorationType, set_exploration_type, step_mdp  # noqa: E402
 
 from activeperc_env.arguments import ArgumentParser, whole_number  # noqa: E402
 from activeperc_env.core import HOLD  # noqa: E402
 from activeperc_env.scripted import goal_in_view, wrap  # noqa: E402
 from activeperc_rl.atomic import atomic_path  # noqa: E402
-from activeperc_rl.envs import LOOKER, MOVER, make_env  # noqa: E402
-from activeperc_rl.evaluate import load_policy, room_quotas  # noqa: E402
+from activeperc_rl.envs import LOOKER, MOVER  # noqa: E402
+from activeperc_rl.evaluate import evaluate, load_policy  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
 
 COLUMNS = ("run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_outside_fov", "cycles")
@@ -50,35 +48,21 @@ def bearing_and_pan(sim) -> tuple[np.ndarray, np.ndarray]:
     return np.degrees(bearing), np.degrees(state[:, 4])
 
 
-def play(config, mover_policy, looker, episodes: int, seed: int) -> dict[str, np.ndarray]:
-    """Play ``episodes`` held-out episodes; per cycle: ``bearing``, ``pan`` (degrees), ``looked``, ``seen``; per
-    episode: ``success``."""
-    quota = room_quotas(episodes)
-    rooms = len(quota)
-    finished = np.zeros(rooms, dtype=np.int64)
+def play(config, mover_policy, looker, episodes: int, seed: int) -> dict:
+    """Play ``episodes`` held-out episodes as ``activeperc-eval`` does; per cycle: ``bearing``, ``pan`` (degrees),
+    ``looked``, ``seen``; and the episodes' ``success_rate`` and their number, ``episodes``."""
     cycles = {"bearing": [], "pan": [], "looked": [], "seen": []}
-    success = []
-    env = make_env(rooms, looker=looker, seed=seed, split="eval", config=config.env)
-    try:
-        with torch.random.fork_rng(), torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
-            torch.manual_seed(seed)
-            td = env.reset()
-            while (finished < quota).any():
-                td = env.step(mover_policy(td))
-                counted = finished < quota
-                images = td.get(("next", MOVER, "observation", "image")).numpy()
-                bearing, pan = bearing_and_pan(env.sim)
-                cycles["bearing"].append(bearing[counted])
-                cycles["pan"].append(pan[counted])
-                cycles["looked"].append((td.get(("next", LOOKER, "action")).reshape(-1).numpy() != HOLD)[counted])
-                cycles["seen"].append(~np.isnan(goal_in_view(images, config.env.fov)[0])[counted])
-                done = td.get(("next", "done")).reshape(-1).numpy() & counted
-                success.extend(td.get(("next", MOVER, "episode_success")).reshape(-1).numpy()[done].tolist())
-                finished += done
-                td = env.maybe_reset(step_mdp(td, keep_other=True))
-    finally:
-        env.close()
-    return {key: np.concatenate(values) for key, values in cycles.items()} | {"success": np.asarray(success)}
+
+    def record(env, td, counted):
+        images = td.get(("next", MOVER, "observation", "image"))[..., -3:].numpy()  # a frame stack's latest
+        bearing, pan = bearing_and_pan(env.sim)
+        cycles["bearing"].append(bearing[counted])
+        cycles["pan"].append(pan[counted])
+        cycles["looked"].append((td.get(("next", LOOKER, "action")).reshape(-1).numpy() != HOLD)[counted])
+        cycles["seen"].append(~np.isnan(goal_in_view(images, config.env.fov)[0])[counted])
+
+    outcome = evaluate(config, mover_policy, looker, episodes, seed, on_cycle=record)
+    return {key: np.concatenate(values) for key, values in cycles.items()} | outcome
 
 
 def summary(run: str, looker: str, record: dict[str, np.ndarray], fov: float) -> dict:
@@ -87,8 +71,8 @@ def summary(run: str, looker: str, record: dict[str, np.ndarray], fov: float) ->
     return {
         "run": run,
         "looker": looker,
-        "episodes": len(record["success"]),
-        "success": f"{record['success'].mean():.3f}",
+        "episodes": record["episodes"],
+        "success": f"{record['success_rate']:.3f}",
         "pan_rate": f"{record['looked'].mean():.3f}",
         "goal_in_view": f"{record['seen'].mean():.3f}",
         "in_view_outside_fov": f"{record['seen'][outside].mean():.3f}",

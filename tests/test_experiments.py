@@ -129,18 +129,20 @@ def test_pan_vs_bearing_plays_the_evaluations_episodes(tmp_path):
     out = tmp_path / "run"
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
     train = [*tiny, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "12", "--seed", "3", "--out", str(out)]
+    train += ["--frame-stack", "2"]  # the goal is looked for in the latest view
     assert cli.main(train) == 0
     argv = [str(out), "--episodes", "6", "--figure", str(tmp_path / "f.png"), "--csv", str(tmp_path / "r.csv")]
     assert pan_vs_bearing.main(argv) == 0
     config, mover, looker = load_policy(out)
     learned = pan_vs_bearing.play(config, mover, looker, 6, seed=3)
     held = pan_vs_bearing.play(config, mover, pan_vs_bearing.FixedLooker(), 6, seed=3)
-    # the seed of the run's own evaluation: the same episodes and sampling, so the same success rate
-    assert learned["success"].mean() == evaluate(config, mover, looker, episodes=6, seed=3)["success_rate"]
+    # the run's own evaluation (its seed: the same episodes and sampling), with a record of each of its cycles
+    assert learned["success_rate"] == evaluate(config, mover, looker, episodes=6, seed=3)["success_rate"]
+    assert len(learned["pan"]) == len(learned["seen"]) == round(learned["mean_length"] * 6) <= 6 * 12
     learned_row = (tmp_path / "r.csv").read_text().splitlines()[1].split(",")
-    assert learned_row[1:4] == ["learned", "6", f"{learned['success'].mean():.3f}"]  # main() played the same
-    assert len(held["success"]) == 6 and not held["looked"].any() and (held["pan"] == 0).all()
+    assert learned_row[1:4] == ["learned", "6", f"{learned['success_rate']:.3f}"]  # main() played the same
+    assert held["episodes"] == 6 and not held["looked"].any() and (held["pan"] == 0).all()
+    assert len(held["pan"]) == round(held["mean_length"] * 6)
     assert np.abs(learned["bearing"]).max() <= 180 and np.abs(learned["pan"]).max() <= config.env.pan_range + 1e-3
-    assert len(learned["pan"]) == len(learned["seen"]) <= 6 * 12
     rows = (tmp_path / "r.csv").read_text().splitlines()
     assert rows[0].startswith("run,looker,episodes") and len(rows) == 3 and (tmp_path / "f.png").stat().st_size > 0

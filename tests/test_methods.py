@@ -190,6 +190,22 @@ def test_a_mover_with_the_bearing_layout_reads_the_pan_into_its_features():
     assert ahead.shape == left.shape == (1, 8) and not torch.equal(ahead, left)
 
 
+def test_an_encoder_of_a_frame_stack_reads_every_view_and_pan():
+    encoder = make_encoder(EnvConfig(), (4,), 8, frames=3)
+    image, ranges = torch.randint(0, 256, (2, 60, 80, 9), dtype=torch.uint8), torch.ones(2, 13)
+    pans = torch.zeros(2, 3)
+    features = encoder(image, pans, ranges)
+    assert features.shape == (2, 8)
+    older = image.clone()
+    older[..., :3] = 0  # only the oldest view changes
+    assert not torch.equal(encoder(older, pans, ranges), features)
+    assert not torch.equal(encoder(image, pans + torch.tensor([0.5, 0, 0]), ranges), features)
+    with pytest.raises(ValueError, match=r"\(\*batch, 60, 80, 9\).*frame_stack=3"):
+        encoder(image[..., :3], pans[:, :1], ranges)
+    with pytest.raises(ValueError, match="bearing_bins=12 lays out one view"):
+        make_encoder(EnvConfig(), (4,), 8, bearing_bins=12, frames=2)
+
+
 def test_curriculum_keeps_its_switch_point_on_resume():
     from activeperc_rl.config import TrainConfig
     from activeperc_rl.methods import make_method

@@ -426,3 +426,52 @@ def test_the_room_is_given_typed_or_by_its_fields_not_both():
         make_env(num_envs=1, config=room, fov=100)
     with pytest.raises(TypeError, match="expected an EnvConfig"):
         make_env(num_envs=1, config={"fov": 100})
+
+
+def test_a_frame_stack_holds_each_rooms_latest_views_oldest_first():
+    """With ``frame_stack=3`` every observation is the last three views of the unstacked env's episode on the
+    channels (the first view repeated at an episode's start, auto-resets included) and their pans."""
+    steps, n = 14, 3
+    actions = torch.randint(0, 3, (steps, n, 2), generator=torch.Generator().manual_seed(1))
+    runs = []
+    for frame_stack in (1, 3):
+        env = make_env(num_envs=n, seed=2, max_cycles=5, frame_stack=frame_stack)
+        runs.append(env.rollout(steps, replay(actions), break_when_any_done=False))
+        env.close()
+    single, stacked = runs
+    assert stacked["mover", "observation", "image"].shape == (n, steps, 60, 80, 9)
+    assert stacked["mover", "observation", "pan"].shape == (n, steps, 3)
+    assert torch.equal(stacked["mover", "observation", "range"], single["mover", "observation", "range"])
+    starts = torch.cat([torch.ones(n, 1, dtype=torch.bool), single["next", "done"][:, :-1, 0]], 1)
+    assert starts[:, 1:].any()  # episodes restart inside the rollout
+    for i in range(n):
+        first = 0
+        for t in range(steps):
+            first = t if starts[i, t] else first
+            back = [max(t - k, first) for k in (2, 1, 0)]
+            views = [single["mover", "observation", "image"][i, s] for s in back]
+            pans = [single["mover", "observation", "pan"][i, s] for s in back]
+            assert torch.equal(stacked["mover", "observation", "image"][i, t], torch.cat(views, -1))
+            assert torch.equal(stacked["mover", "observation", "pan"][i, t], torch.cat(pans, -1))
+
+
+def test_a_frame_stacks_look_views_share_the_past_and_its_state_resumes():
+    env = make_env(num_envs=2, looker=constant_looker(0), seed=0, look_views=True, frame_stack=2)
+    step = env.rollout(3)["next"]
+    views, seen = step["looker", "look_views"], step["looker", "observation"]
+    assert views["image"].shape == (2, 3, 3, 60, 80, 6) and views["pan"].shape == (2, 3, 3, 2)
+    assert torch.equal(views["image"][:, :, 1], seen["image"])  # a hold: s_bar itself
+    for look in range(3):  # every look follows the same past view
+        assert torch.equal(views["image"][:, :, look, ..., :3], seen["image"][..., :3])
+    state = env.rooms_state()
+    moves = {"mover": {"action": torch.tensor([2, 0])}}
+    expected = env.step(env.reset(rooms_state=state).update(moves))["next", "mover", "observation"]
+    other = make_env(num_envs=2, looker=constant_looker(0), seed=5, frame_stack=2)
+    got = other.step(other.reset(rooms_state=state).update(moves))["next", "mover", "observation"]
+    assert torch.equal(got["image"], expected["image"]) and torch.equal(got["pan"], expected["pan"])
+    with pytest.raises(ValueError, match="past_images of shape"):
+        make_env(num_envs=2, frame_stack=3).load_rooms_state(state)
+    with pytest.raises(ValueError, match="frame_stack=0 is invalid"):
+        make_env(num_envs=1, frame_stack=0)
+    env.close()
+    other.close()

@@ -126,6 +126,20 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     assert sum(int(r["episodes"]) for r in rows) > 0  # episodes ended: the rows are not all empty
 
 
+def test_a_resumed_run_with_a_frame_stack_is_the_uninterrupted_run(tmp_path):
+    """The rooms' past views are part of what a checkpoint holds: a run stopped and resumed stacks the same views
+    (and, with best_look, credits the same stacked views of every look)."""
+    tiny = ["--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0", "--frame-stack", "3"]
+    tiny += ["--version", "3", "--looker-credit", "best_look"]
+    whole = run_cli(tmp_path, *tiny, "--frames", "800", name="whole")
+    cut = run_cli(tmp_path, *tiny, "--frames", "200", name="cut")
+    assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
+    assert_same_run(whole, cut)
+    video = tmp_path / "episode.mp4"  # its frames show the latest view
+    assert evaluate.main([str(whole), "--episodes", "1", "--video", str(video)]) == 0
+    assert iio.imread(video).shape[1:] == (240, 640, 3)
+
+
 @pytest.mark.parametrize(
     "damage",
     [
@@ -427,7 +441,7 @@ def test_bad_flags_are_named(tmp_path, capsys):
         ("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0), ("lr", "7e-4"),
         ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
         ("lr", float("inf")), ("max_grad_norm", float("nan")), ("entropy_coeff", float("inf")), ("seed", 2**63),
-        ("rollout_length", 1), ("collect_workers", 17),
+        ("rollout_length", 1), ("collect_workers", 17), ("frame_stack", 0), ("frame_stack", 17),
         # sizes that failed deep in torch, mujoco or deque
         ("num_envs", 10**18), ("rollout_length", 10**18), ("hidden_size", 10**18), ("channels", (16, 10**18)),
         ("success_window", 10**19), ("torch_threads", 10**18), ("learner_threads", 10**18),
@@ -436,6 +450,14 @@ def test_bad_flags_are_named(tmp_path, capsys):
 def test_invalid_training_value_names_the_field(field, value):
     with pytest.raises(ValueError, match=re.escape(f"TrainConfig.{field}={value!r}")):
         TrainConfig(**{field: value})
+
+
+def test_a_frame_stack_with_the_bearing_layout_is_refused():
+    with pytest.raises(
+        ValueError,
+        match=re.escape("TrainConfig.frame_stack=2 is invalid: expected an int in 1 .. 16, 1 with bearing_bins"),
+    ):
+        TrainConfig(frame_stack=2, bearing_bins=12)
 
 
 def test_preset_then_flags(tmp_path):
