@@ -183,18 +183,19 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
 
 
 V3_SWEEP = "experiments/results/v3_best_look"
+V3_FRAME_STACK = "experiments/results/v3_frame_stack"
 
 
-def v3_sweep() -> str:
-    """The room v3 sweep of ``meta --looker-credit best_look`` against ``fixed_forward``: results over seeds and
-    the paired differences."""
-    rows = read(f"{V3_SWEEP}/summary.csv")
+def v3_sweep(folder: str) -> str:
+    """A room v3 sweep (``folder``) of ``meta --looker-credit best_look`` against ``fixed_forward``: results over
+    seeds and the paired differences."""
+    rows = read(f"{folder}/summary.csv")
     return summary_table(rows) + "\n" + difference_table(rows)
 
 
-def v3_looks() -> str:
-    """What each seed's learned looker did on the held-out episodes, beside the camera held forward
-    (``experiments/pan_vs_bearing.py``)."""
+def v3_looks(folder: str) -> str:
+    """What each seed's learned looker of the sweep in ``folder`` did on the held-out episodes, beside the camera
+    held forward (``experiments/pan_vs_bearing.py``)."""
     rows = [
         [
             f"{Path(r['run']).name}, {r['looker']}",
@@ -203,7 +204,7 @@ def v3_looks() -> str:
             r["goal_in_view"],
             r["in_view_outside_fov"],
         ]
-        for r in read(f"{V3_SWEEP}/pan_vs_bearing.csv")
+        for r in read(f"{folder}/pan_vs_bearing.csv")
     ]
     header = [
         "`meta` run, looker",
@@ -474,8 +475,10 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         "env.md",
         lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking_v3.csv")) + "\n",
     ),
-    "room-v3-sweep": ("reproduction.md", v3_sweep),
-    "room-v3-looks": ("reproduction.md", v3_looks),
+    "room-v3-sweep": ("reproduction.md", lambda: v3_sweep(V3_SWEEP)),
+    "room-v3-looks": ("reproduction.md", lambda: v3_looks(V3_SWEEP)),
+    "room-v3-frame-stack": ("reproduction.md", lambda: v3_sweep(V3_FRAME_STACK)),
+    "room-v3-frame-stack-looks": ("reproduction.md", lambda: v3_looks(V3_FRAME_STACK)),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
