@@ -312,9 +312,9 @@ class ActivePerceptionEnv(EnvBase):
                 record.set("look_views", {"image": torch.from_numpy(views), "pan": torch.from_numpy(pans)})
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
-        observation = self._observe()
+        observation = self._stacked(self.sim.observe(), np.arange(n))
         self._remember(observation, ids)
-        out.set((MOVER, "observation"), observation)
+        out.set((MOVER, "observation"), self._on_device(observation))
         out.update({MOVER: self._outcomes()})
         for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
             rewards = np.zeros(n, dtype=np.float32)
@@ -400,9 +400,12 @@ class ActivePerceptionEnv(EnvBase):
     def _observe(self) -> TensorDict:
         """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`), after the room's past
         views when it stacks frames, on ``device``."""
-        stacked = self._stacked(self.sim.observe(), np.arange(self.num_envs))
-        observation = {key: torch.from_numpy(value) for key, value in stacked.items()}
-        return TensorDict(observation, batch_size=self.batch_size, device=self.device)
+        return self._on_device(self._stacked(self.sim.observe(), np.arange(self.num_envs)))
+
+    def _on_device(self, observation: dict[str, np.ndarray]) -> TensorDict:
+        """Every room's ``observation`` arrays as a tensordict on ``device``."""
+        tensors = {key: torch.from_numpy(value) for key, value in observation.items()}
+        return TensorDict(tensors, batch_size=self.batch_size, device=self.device)
 
     def _stacked(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, np.ndarray]:
         """The rooms ``ids``' ``observation`` with their past views before its image and pan."""
@@ -423,13 +426,13 @@ class ActivePerceptionEnv(EnvBase):
         past_pans = np.repeat(self._past_pans[:, None], looks, axis=1)
         return np.concatenate([past_images, views], axis=-1), np.concatenate([past_pans, pans], axis=-1)
 
-    def _remember(self, observation: TensorDict, ids: np.ndarray) -> None:
-        """Keep the latest views of the rooms ``ids`` (a cycle's last observation) as their past views."""
+    def _remember(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> None:
+        """Keep the latest views of the rooms ``ids`` (every room's stacked ``observation`` at a cycle's end) as their
+        past views."""
         if self.frame_stack == 1 or not len(ids):
             return
-        image, pan = observation["image"].cpu().numpy(), observation["pan"].cpu().numpy()
-        self._past_images[ids] = image[ids, ..., 3:]
-        self._past_pans[ids] = pan[ids, 1:]
+        self._past_images[ids] = observation["image"][ids, ..., 3:]
+        self._past_pans[ids] = observation["pan"][ids, 1:]
 
 
 # TorchRL's metaclass shows the constructor as (*args, **kwargs) to help() and IDEs: give them its real arguments
@@ -443,6 +446,12 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
             f"the looker module wrote ('looker', 'action') of shape {tuple(action.shape)} and dtype "
             f"{action.dtype}: expected integers of shape ({n},) or ({n}, 1) in Discrete(3) {LOOKER_ACTIONS}"
         )
+
+
+def latest_view(image):
+    """The latest view of observation images (``(..., H, W, 3 * frame_stack)``, a frame stack's last three channels;
+    the image itself without one)."""
+    return image[..., -3:]
 
 
 def torch_device(device) -> torch.device | None:

@@ -25,7 +25,7 @@ from activeperc_rl import portable
 from activeperc_rl.atomic import atomic_path, check_writable
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
 from activeperc_rl.config import DEVICES, TrainConfig
-from activeperc_rl.envs import LOOKER, MOVER, make_env, torch_device
+from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
 from activeperc_rl.signals import stop_raises_interrupt
 
@@ -163,9 +163,9 @@ def load_policy(path: str | Path, device="cpu"):
 
 
 def _video_frame(env, images: torch.Tensor) -> np.ndarray:
-    """Room 0's bird's-eye map with its first-person view (``images[0]``, the mover's; a frame stack's latest) on the
+    """Room 0's bird's-eye map with its first-person view (the latest view of ``images[0]``, the mover's) on the
     right."""
-    return side_by_side(env.sim.render_map(0), images[0, ..., -3:].cpu().numpy())
+    return side_by_side(env.sim.render_map(0), latest_view(images[0]).cpu().numpy())
 
 
 def _write_video(path: str | Path, frames: list[np.ndarray], fps: float) -> None:

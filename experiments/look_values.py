@@ -30,7 +30,7 @@ from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 from activeperc_env.scripted import goal_in_view
 from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
-from activeperc_rl.envs import LOOKER, MOVER, make_env
+from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env
 from activeperc_rl.methods import make_method
 
 GROUPS = ("not in view", "left third", "middle third", "right third")
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     record = data["next", LOOKER].reshape(-1)[~data["next", "done"].reshape(-1)]  # looks that a move followed
     values = look_values(method.critic, record)
     gain = (values - values[:, HOLD : HOLD + 1]).numpy()
-    groups = goal_groups(record["observation", "image"][..., -3:].numpy(), config.env.fov)  # a frame stack's latest
+    groups = goal_groups(latest_view(record["observation", "image"]).numpy(), config.env.fov)
     greedy = None
     phi2 = method.modules.get("phi2")
     if phi2 is not None:

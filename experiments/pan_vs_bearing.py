@@ -31,7 +31,7 @@ from activeperc_env.arguments import ArgumentParser, whole_number  # noqa: E402
 from activeperc_env.core import HOLD  # noqa: E402
 from activeperc_env.scripted import goal_in_view, wrap  # noqa: E402
 from activeperc_rl.atomic import atomic_path  # noqa: E402
-from activeperc_rl.envs import LOOKER, MOVER  # noqa: E402
+from activeperc_rl.envs import LOOKER, MOVER, latest_view  # noqa: E402
 from activeperc_rl.evaluate import evaluate, load_policy  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
 
@@ -54,7 +54,7 @@ def play(config, mover_policy, looker, episodes: int, seed: int) -> dict:
     cycles = {"bearing": [], "pan": [], "looked": [], "seen": []}
 
     def record(env, td, counted):
-        images = td.get(("next", MOVER, "observation", "image"))[..., -3:].numpy()  # a frame stack's latest
+        images = latest_view(td.get(("next", MOVER, "observation", "image"))).numpy()
         bearing, pan = bearing_and_pan(env.sim)
         cycles["bearing"].append(bearing[counted])
         cycles["pan"].append(pan[counted])
