@@ -1,4 +1,4 @@
-"""Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on the x86-64 CPUs of a vendor that have it.
+"""Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on x86-64 CPUs that have it.
 
 torch picks its CPU kernels (ATen's, oneDNN's, MKL's) by the CPU it finds, and kernels of another width round
 differently; three environment variables cap that choice, each read once, at its library's first kernel. So the
@@ -16,9 +16,9 @@ from contextlib import suppress
 
 import torch
 
-PINNED_ENVIRONMENT = {"ATEN_CPU_CAPABILITY": "avx2", "ONEDNN_MAX_CPU_ISA": "AVX2", "MKL_CBWR": "AVX2,STRICT"}
-"""The variables that cap torch's CPU kernels at AVX2 (ATen's, oneDNN's convolutions, MKL's matrix products), and
-their values."""
+PINNED_ENVIRONMENT = {"ATEN_CPU_CAPABILITY": "avx2", "ONEDNN_MAX_CPU_ISA": "AVX2", "MKL_CBWR": "COMPATIBLE"}
+"""The variables that pin torch's CPU kernels (ATen's and oneDNN's convolutions at AVX2, MKL's matrix products on
+the branch that every vendor's CPU runs alike), and their values."""
 PINNED_CAPABILITY = "AVX2"
 """What ``torch.backends.cpu.get_cpu_capability()`` says in a pinned process."""
 _AVX2_OR_WIDER = ("AVX2", "AVX512")

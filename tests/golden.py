@@ -149,9 +149,12 @@ def main() -> None:
             for method in TRAINING_METHODS:
                 train_portable(method, Path(folder) / method)
             made = {method: training_trace(Path(folder) / method) for method in TRAINING_METHODS}
-        # the metrics are the same on every CPU; the weights' bits are kept per CPU vendor, this one's replaced
+        # the metrics are the same on every CPU; the weights' bits are kept per CPU vendor, this one's replaced, and
+        # other vendors' only while they were made with today's pins
         old = json.loads(TRAINING.read_text()) if TRAINING.exists() else {}
-        stored = {
+        if old.get("pinned") != portable.PINNED_ENVIRONMENT:
+            old = {}
+        stored = {"pinned": portable.PINNED_ENVIRONMENT} | {
             method: {"metrics": trace["metrics"], "weights": old.get(method, {}).get("weights", {}) | trace["weights"]}
             for method, trace in made.items()
         }

@@ -4,6 +4,7 @@ child process, the rounds' ratios and the harness's part timers."""
 import csv
 import importlib
 import importlib.util
+import json
 import sys
 import time
 from pathlib import Path
@@ -112,6 +113,7 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
         ("view_profile", ["--views", "0"], "views must be >= 1, got 0"),
         ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
         ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
+        ("portable_bits", ["--only", "nothing"], "invalid choice: 'nothing'"),
     ],
 )
 def test_every_script_refuses_bad_values_before_timing(script, argv, error, capsys):
@@ -366,3 +368,21 @@ def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
     rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
     assert {"default", "onednn", "portable"} <= set(rows)
     assert all(len(rows[mode].split(", ")) == 1 for mode in ("default", "onednn", "portable")), rows
+
+
+def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, monkeypatch, capsys):
+    """Each candidate's digests are stored under this CPU's vendor, other vendors' kept, and the table says where
+    two vendors' digests differ."""
+    bits = load_script("portable_bits")
+    results = tmp_path / "portable_bits.json"
+    results.write_text(json.dumps({"portable": {"OtherVendor": {"fixed_forward": "0123456789abcdef"}}}))
+    monkeypatch.setattr(bits, "RESULTS", results)
+    monkeypatch.setattr(bits.golden, "TRAINING_METHODS", ("fixed_forward",))
+    flags = ("--frames", "512", "--learner-threads", "1", "--torch-threads", "1", "--eval-episodes", "0")
+    monkeypatch.setattr(bits.golden, "TRAINING_FLAGS", (*flags, "--no-progress"))
+    bits.main(["--only", "portable", "portable_no_onednn"])
+    stored, vendor = json.loads(results.read_text()), bits.cpu_vendor()
+    assert set(stored) == {"portable", "portable_no_onednn"}
+    assert set(stored["portable"]) == {"OtherVendor", vendor} and set(stored["portable_no_onednn"]) == {vendor}
+    rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
+    assert rows["portable"] == "no" and rows["portable_no_onednn"] == "one vendor so far"
