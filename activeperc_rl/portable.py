@@ -1,4 +1,4 @@
-"""Portable mode: torch's CPU kernels pinned to AVX2, so that a run repeats on x86-64 CPUs that have it.
+"""Portable mode: torch's CPU kernels pinned (ATen and oneDNN to AVX2), so that a run repeats on other x86-64 CPUs.
 
 torch picks its CPU kernels (ATen's, oneDNN's, MKL's) by the CPU it finds, and kernels of another width round
 differently; three environment variables cap that choice, each read once, at its library's first kernel. So the
@@ -56,7 +56,7 @@ def _variables_set() -> bool:
 
 
 def is_pinned() -> bool:
-    """Whether this process's torch kernels are capped at AVX2 (the variables set before torch started)."""
+    """Whether this process's torch kernels are pinned (the variables set before torch started)."""
     return _variables_set() and cpu_capability() == PINNED_CAPABILITY
 
 
@@ -68,7 +68,7 @@ def require_pinned() -> None:
     """Raise ``ValueError`` unless this process is pinned: portable mode must start before torch does."""
     if not is_pinned():
         raise ValueError(
-            f"portable=True needs torch's CPU kernels capped at AVX2 before torch starts (this process uses "
+            f"portable=True needs torch's CPU kernels pinned before torch starts (this process uses "
             f"{cpu_capability()}): run activeperc-train --portable from a shell, which sets that up, or start "
             f"Python with {_pinned_command()}"
         )

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -27,25 +25,20 @@ sys.path.insert(0, str(ROOT / "tests"))
 import golden  # noqa: E402 (tests/ on the path first)
 
 from activeperc_rl.atomic import atomic_path  # noqa: E402
-from activeperc_rl.portable import PINNED_ENVIRONMENT, cpu_vendor, machine  # noqa: E402
+from activeperc_rl.portable import PINNED_ENVIRONMENT, cpu_capability, cpu_vendor, has_avx2, machine  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results" / "portable_bits.json"
-CANDIDATES = {  # name: (environment of the training process, whether torch may call oneDNN)
+CANDIDATES = {  # name: (the pinning variables, whether torch may call oneDNN)
     "mkl_avx2": (PINNED_ENVIRONMENT | {"MKL_CBWR": "AVX2,STRICT"}, True),  # MKL on its AVX2 branch
     "portable": (PINNED_ENVIRONMENT, True),  # activeperc-train --portable
     "portable_no_onednn": (PINNED_ENVIRONMENT, False),  # convolutions in ATen's kernels instead of oneDNN's
 }
-# activeperc-train in a process that sets torch's oneDNN switch first (no variable sets it)
-TRAIN = "import sys, torch; torch.backends.mkldnn.enabled = {}; from activeperc_rl import cli; sys.exit(cli.main())"
 
 
 def train(candidate: str, method: str, out: Path) -> str:
     """Train ``method`` as the golden trace does, pinned as ``candidate`` says, into ``out``: its weights' digest."""
-    variables, onednn = CANDIDATES[candidate]
-    environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | variables
-    flags = [flag for flag in golden.TRAINING_FLAGS if flag != "--portable"]  # pinned here, not by a restart
-    command = [sys.executable, "-c", TRAIN.format(onednn), "--method", method, *flags, "--out", str(out)]
-    subprocess.run(command, env=environment, check=True, capture_output=True, text=True)
+    pins, onednn = CANDIDATES[candidate]
+    golden.train_portable(method, out, pins, onednn)
     (digest,) = golden.training_trace(out)["weights"].values()
     return digest
 
@@ -55,9 +48,11 @@ def table(stored: dict) -> str:
     vendors = sorted({vendor for by_vendor in stored.values() for vendor in by_vendor})
     lines = [f"| candidate | {' | '.join(vendors)} | vendors agree |", "|---" * (len(vendors) + 2) + "|"]
     for candidate, by_vendor in stored.items():
-        cells = [", ".join(by_vendor[v][m] for m in golden.TRAINING_METHODS) if v in by_vendor else "" for v in vendors]
-        agree = "yes" if len({tuple(d.items()) for d in by_vendor.values()}) == 1 else "no"
-        lines.append(f"| {candidate} | {' | '.join(cells)} | {agree if len(by_vendor) > 1 else 'one vendor so far'} |")
+        methods = golden.TRAINING_METHODS
+        cells = [", ".join(by_vendor[v].get(m, "?") for m in methods) if v in by_vendor else "" for v in vendors]
+        digests = list(by_vendor.values())
+        agree = "one vendor so far" if len(digests) < 2 else "yes" if all(d == digests[0] for d in digests) else "no"
+        lines.append(f"| {candidate} | {' | '.join(cells)} | {agree} |")
     return "\n".join(lines)
 
 
@@ -66,19 +61,18 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", choices=CANDIDATES, default=list(CANDIDATES), help="candidates to train")
     args = parser.parse_args(argv)
+    if not has_avx2():
+        parser.error(f"every candidate pins torch's kernels to AVX2, and this CPU's are {cpu_capability()}")
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
     vendor = cpu_vendor()
     print(f"# {machine()}, {vendor}")
     with tempfile.TemporaryDirectory() as folder:
         for candidate in args.only:
-            digests = {
-                method: train(candidate, method, Path(folder) / candidate / method)
-                for method in golden.TRAINING_METHODS
-            }
+            digests = {m: train(candidate, m, Path(folder) / candidate / m) for m in golden.TRAINING_METHODS}
             stored.setdefault(candidate, {})[vendor] = digests
             print(f"{candidate}: {digests}", flush=True)
-    with atomic_path(RESULTS) as temporary:
-        temporary.write_text(json.dumps(stored, indent=1) + "\n")
+            with atomic_path(RESULTS) as temporary:  # each candidate's digests kept as soon as they are made
+                temporary.write_text(json.dumps(stored, indent=1) + "\n")
     print(table(stored))
 
 

@@ -31,6 +31,10 @@ TRAINING_METHODS = ("meta", "fixed_forward")
 TRAINING_FLAGS = ("--portable", "--frames", "3072", "--learner-threads", "2", "--torch-threads", "1")
 TRAINING_FLAGS += ("--eval-episodes", "0", "--no-progress")
 TRAINING_COLUMNS = ("frames", "iteration", "success_rate", "mean_return", "episodes")  # metrics.csv's, less timings
+# activeperc-train after setting torch's oneDNN switch, which no environment variable sets
+PINNED_LAUNCHER = (
+    "import sys, torch; torch.backends.mkldnn.enabled = {}; from activeperc_rl import cli; sys.exit(cli.main())"
+)
 SEEDS = (3, 17, 2024)
 CYCLES = 40
 
@@ -115,11 +119,20 @@ def traces(version: int) -> dict:
     return {"core": core_trace(version), "parallel_env": parallel_env_trace(version), "torchrl": torchrl_trace(version)}
 
 
-def train_portable(method: str, out: Path) -> subprocess.CompletedProcess:
+def train_portable(
+    method: str, out: Path, pins: dict[str, str] | None = None, onednn: bool = True
+) -> subprocess.CompletedProcess:
     """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
-    environment leaves torch's kernels unpinned, so that the command pins them itself."""
+    environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, the same run
+    without ``--portable`` in a process started with those variables and torch's oneDNN switch set to ``onednn``
+    (another pinning to compare)."""
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
-    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, *TRAINING_FLAGS, "--out", str(out)]
+    launcher, flags = ["-m", "activeperc_rl.cli"], list(TRAINING_FLAGS)
+    if pins is not None:
+        environment |= pins
+        launcher = ["-c", PINNED_LAUNCHER.format(onednn)]
+        flags.remove("--portable")
+    command = [sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")

@@ -378,7 +378,7 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     results.write_text(json.dumps({"portable": {"OtherVendor": {"fixed_forward": "0123456789abcdef"}}}))
     monkeypatch.setattr(bits, "RESULTS", results)
     monkeypatch.setattr(bits.golden, "TRAINING_METHODS", ("fixed_forward",))
-    flags = ("--frames", "512", "--learner-threads", "1", "--torch-threads", "1", "--eval-episodes", "0")
+    flags = ("--portable", "--frames", "512", "--learner-threads", "1", "--torch-threads", "1", "--eval-episodes", "0")
     monkeypatch.setattr(bits.golden, "TRAINING_FLAGS", (*flags, "--no-progress"))
     bits.main(["--only", "portable", "portable_no_onednn"])
     stored, vendor = json.loads(results.read_text()), bits.cpu_vendor()

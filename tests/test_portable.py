@@ -31,7 +31,7 @@ def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
 def test_the_cli_called_in_process_names_the_problem(unpinned, tmp_path, capsys):
     """main(argv) inside another program does not replace that program's process: it refuses with status 2."""
     assert cli.main(["--portable", "--frames", "256", "--out", str(tmp_path / "run"), "--no-progress"]) == 2
-    assert "portable=True needs torch's CPU kernels capped at AVX2" in capsys.readouterr().err
+    assert "portable=True needs torch's CPU kernels pinned" in capsys.readouterr().err
 
 
 def test_no_second_restart_when_the_variables_did_not_pin(monkeypatch):
