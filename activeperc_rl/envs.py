@@ -411,9 +411,8 @@ class ActivePerceptionEnv(EnvBase):
         """The rooms ``ids``' ``observation`` with their past views before its image and pan."""
         if self.frame_stack == 1:
             return observation
-        image = np.concatenate([self._past_images[ids], observation["image"]], axis=-1)
-        pan = np.concatenate([self._past_pans[ids], observation["pan"]], axis=-1)
-        return observation | {"image": image, "pan": pan}
+        past = {"image": self._past_images[ids], "pan": self._past_pans[ids]}
+        return observation | {key: _after(value, observation[key]) for key, value in past.items()}
 
     def _stacked_look_views(self) -> tuple[np.ndarray, np.ndarray]:
         """The simulator's :meth:`~activeperc_env.Simulator.look_views` of every room, each after the room's past
@@ -421,10 +420,7 @@ class ActivePerceptionEnv(EnvBase):
         views, pans = self.sim.look_views()
         if self.frame_stack == 1:
             return views, pans
-        looks = views.shape[1]
-        past_images = np.repeat(self._past_images[:, None], looks, axis=1)
-        past_pans = np.repeat(self._past_pans[:, None], looks, axis=1)
-        return np.concatenate([past_images, views], axis=-1), np.concatenate([past_pans, pans], axis=-1)
+        return _after(self._past_images[:, None], views), _after(self._past_pans[:, None], pans)
 
     def _remember(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> None:
         """Keep the latest views of the rooms ``ids`` (every room's stacked ``observation`` at a cycle's end) as their
@@ -446,6 +442,11 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
             f"the looker module wrote ('looker', 'action') of shape {tuple(action.shape)} and dtype "
             f"{action.dtype}: expected integers of shape ({n},) or ({n}, 1) in Discrete(3) {LOOKER_ACTIONS}"
         )
+
+
+def _after(past: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """``past`` (repeated over ``current``'s axes where it has length 1) before ``current`` on the last axis."""
+    return np.concatenate([np.broadcast_to(past, current.shape[:-1] + past.shape[-1:]), current], axis=-1)
 
 
 def latest_view(image):
