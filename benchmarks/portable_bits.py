@@ -46,9 +46,9 @@ def train(candidate: str, method: str, out: Path) -> str:
 def table(stored: dict) -> str:
     """Every candidate's digests (``meta``, ``fixed_forward``) by vendor, and whether the vendors agree."""
     vendors = sorted({vendor for by_vendor in stored.values() for vendor in by_vendor})
+    methods = golden.TRAINING_METHODS
     lines = [f"| candidate | {' | '.join(vendors)} | vendors agree |", "|---" * (len(vendors) + 2) + "|"]
     for candidate, by_vendor in stored.items():
-        methods = golden.TRAINING_METHODS
         cells = [", ".join(by_vendor[v].get(m, "?") for m in methods) if v in by_vendor else "" for v in vendors]
         digests = list(by_vendor.values())
         agree = "one vendor so far" if len(digests) < 2 else "yes" if all(d == digests[0] for d in digests) else "no"
