@@ -99,7 +99,7 @@ from tensordict.utils import NestedKey
 from torchrl.objectives import A2CLoss
 from torchrl.objectives.common import LossModule
 
-from activeperc_env.core import HOLD
+from activeperc_env.core import HOLD, LOOKER_ACTIONS
 
 __all__ = ["LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
 
@@ -107,6 +107,9 @@ LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
 """What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
 VIEW_CREDITS = ("every_look", "best_look")
 """The credits that value the view of every look: D2 must record them (``make_env(look_views=True)``)."""
+BEST_LOOK_SHARES = ("best_look_agreement", "best_look_left", "best_look_right")
+"""The shares of D2's cycles in which phi2's argmax is the critic's best look, and in which that is a pan left or
+right (logged with the credits that value every look)."""
 
 _REDUCTIONS = ("mean", "sum")
 
@@ -228,7 +231,8 @@ class MetaEvaluationLoss(LossModule):
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
     of ``rho`` over steps; 1 without ``behaviour_epsilon``), ``meta_value`` and ``meta_value_std``
     (mean and standard deviation of ``M`` over the trajectories of ``D2``), ``baseline``, ``num_trajectories`` (the
-    trajectories of ``D2``) and ``num_reference_trajectories`` (``K``, those of ``D1``).
+    trajectories of ``D2``), ``num_reference_trajectories`` (``K``, those of ``D1``) and, where ``credit`` values
+    every look, the shares of :data:`BEST_LOOK_SHARES`.
 
     The three modules are held as they are (not functionalised): ``loss.looker_actor`` is
     ``looker_actor`` itself, and an optimizer over ``looker_actor.parameters()`` trains it.
@@ -483,8 +487,8 @@ class MetaEvaluationLoss(LossModule):
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
-        if self.credit == "best_look":  # cross-entropy toward the look the critic values most, 'hold' on a tie
-            best = torch.where(q.max(-1).values > q[:, HOLD], q.argmax(-1), HOLD)
+        best = torch.where(q.max(-1).values > q[:, HOLD], q.argmax(-1), HOLD)  # the look the critic values most
+        if self.credit == "best_look":  # cross-entropy toward the best look, 'hold' on a tie
             gain = dist.log_prob(best.reshape(dist.batch_shape)).reshape(-1)
         else:
             gain = (probs * (q - expected.detach()[:, None])).sum(-1)  # its gradient is the policy gradient
@@ -493,10 +497,16 @@ class MetaEvaluationLoss(LossModule):
         if self.reduction == "mean":
             loss_looker, loss_entropy = loss_looker / len(q), loss_entropy / len(q)
         meta = (expected - q[:, HOLD]).detach()
-        return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref)
+        shares = {
+            "best_look_agreement": probs.argmax(-1) == best,
+            "best_look_left": best == LOOKER_ACTIONS.index("pan_left"),
+            "best_look_right": best == LOOKER_ACTIONS.index("pan_right"),
+        }
+        return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref, shares)
 
-    def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref):
-        """The loss's tensordict: the losses, and the diagnostics of the looks (``importance_weight`` ``None``: 1)."""
+    def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref, shares=None):
+        """The loss's tensordict: the losses, and the diagnostics of the looks (``importance_weight`` ``None``: 1;
+        ``shares``: the best-look shares' flags, one per cycle, for the credits that value every look)."""
         dtype, device = meta.dtype, meta.device
         out = TensorDict({"loss_looker": loss_looker}, batch_size=[])
         if self._entropy_bonus:
@@ -509,6 +519,8 @@ class MetaEvaluationLoss(LossModule):
         out.set("baseline", baseline.detach())
         out.set("num_trajectories", torch.tensor(float(num), dtype=dtype, device=device))
         out.set("num_reference_trajectories", torch.tensor(float(num_ref), dtype=dtype, device=device))
+        for key, share in (shares or {}).items():
+            out.set(key, share.to(dtype).mean())
         return out
 
     def _look_values(self, record: TensorDictBase, mask: torch.Tensor) -> torch.Tensor:

@@ -79,7 +79,8 @@ class Method:
     READS: tuple[str, ...] = ()
     """The :class:`TrainConfig` options this method reads beyond those every method reads."""
     LOGGED: dict[str, str] = {}
-    """The entries of :attr:`Iteration.losses` that ``metrics.csv`` holds too, and their columns there."""
+    """The entries of :attr:`Iteration.losses` that ``metrics.csv`` holds too, and their columns there (nan where an
+    iteration has no such entry)."""
 
     def __init__(self, config: TrainConfig, device: torch.device):
         self.config = config
@@ -460,6 +461,9 @@ class Meta(_MoverA2C):
         "meta/e1_pan_rate": "e1_pan_rate",
         "meta/e2_pan_rate": "e2_pan_rate",
         "meta/e2_success_rate": "e2_success_rate",
+        "looker/best_look_agreement": "best_look_agreement",
+        "looker/best_look_left": "best_look_left",
+        "looker/best_look_right": "best_look_right",
     }
 
     def __init__(self, config: TrainConfig, device: torch.device):

@@ -246,7 +246,7 @@ class _Run:
             "success_rate": round(success, 4),
             "mean_return": round(mean_return, 4),
             "episodes": len(step.returns),
-        } | {column: round(step.losses[key], 5) for key, column in self.method.LOGGED.items()}
+        } | {column: round(step.losses.get(key, math.nan), 5) for key, column in self.method.LOGGED.items()}
 
     def evaluate(self, progress: bool) -> dict:
         """The learned and a random policy on held-out layouts, printed and written to ``eval.json``; where a looker

@@ -10,7 +10,14 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_rl.losses import LOOKER_CREDITS, JointA2CLoss, MetaEvaluationLoss, trajectory_ids, trajectory_means
+from activeperc_rl.losses import (
+    BEST_LOOK_SHARES,
+    LOOKER_CREDITS,
+    JointA2CLoss,
+    MetaEvaluationLoss,
+    trajectory_ids,
+    trajectory_means,
+)
 
 PAN = ("mover", "observation", "pan")
 LOOKER_PAN = ("looker", "observation", "pan")
@@ -354,6 +361,21 @@ def test_credit_of_the_best_look_is_a_cross_entropy_toward_it_with_hold_winning_
     assert torch.allclose(logits.logits.grad, torch.tensor([2.0, -1.0, -1.0]) / 6, atol=1e-7)
     assert out["loss_looker"].item() == pytest.approx(math.log(3))
     assert out["meta_value"].item() == pytest.approx(1 / 3)  # as every_look's: what pi adds over holding
+
+
+@pytest.mark.parametrize("credit", ["every_look", "best_look"])
+def test_credits_that_value_every_look_log_how_often_phi2_picks_the_best_one(credit):
+    # best looks: right (Q = 1, 0, 3), then hold (Q = 0, 0, -2, a tie); phi2's argmax is right in both cycles
+    out = MetaEvaluationLoss(make_actor(FixedLogits([0.0, 0.0, 1.0])), pan_critic(), pan_critic(), credit=credit)(
+        every_look_td(), reference_td()
+    )
+    shares = {key: out[key].item() for key in BEST_LOOK_SHARES}
+    assert shares == {"best_look_agreement": 0.5, "best_look_left": 0.0, "best_look_right": 0.5}
+
+
+def test_credits_that_value_one_look_have_no_best_look_shares():
+    out = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="look")(look_td(), reference_td())
+    assert not set(BEST_LOOK_SHARES) & set(out.keys())
 
 
 def test_credit_of_every_look_needs_the_views_of_every_look():

@@ -23,6 +23,7 @@ from activeperc_rl import train as train_module
 from activeperc_rl.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint, save_checkpoint
 from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import make_env
+from activeperc_rl.losses import BEST_LOOK_SHARES
 from activeperc_rl.methods import METHODS, Meta
 from activeperc_rl.models import FixedLooker
 from activeperc_rl.rundir import claim_run_dir, new_run_dir
@@ -235,7 +236,16 @@ def test_meta_logs_its_meta_evaluator_and_looker_in_metrics_csv(tmp_path):
         values = {column: float(row[column]) for column in logged}  # e2_success_rate is nan without an episode
         assert values["meta_value_std"] >= 0 and 0 <= values["e1_pan_rate"] <= 1 and 0 <= values["e2_pan_rate"] <= 1
         assert 0 < values["looker_entropy"] <= math.log(3) + 1e-6
+        assert all(math.isnan(values[share]) for share in BEST_LOOK_SHARES)  # the paper's credit values no views
     assert float(rows[0]["e2_pan_rate"]) > 0  # epsilon 0.3 pans at random in E2
+
+
+def test_meta_with_the_best_look_credit_logs_how_often_phi2_picks_the_best_look(tmp_path):
+    out = run_cli(tmp_path, "--frames", "200", "--eval-episodes", "0", "--looker-credit", "best_look")
+    for row in read_metrics(out):
+        shares = {share: float(row[share]) for share in BEST_LOOK_SHARES}
+        assert all(0 <= share <= 1 for share in shares.values()), shares
+        assert shares["best_look_left"] + shares["best_look_right"] <= 1
 
 
 @pytest.mark.parametrize("method", ["ia2c", "joint"])
