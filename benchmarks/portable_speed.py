@@ -1,11 +1,12 @@
 """What portable mode costs in training frames/s, in rounds of fresh trainings.
 
-Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, and with ``--portable``; the digests of their
-networks say which runs agree.
+Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, with ``--portable``, and with portable mode's
+pins but oneDNN switched off (convolutions in ATen's own kernels); the digests of their networks say which runs
+agree.
 
 Run it from the repository root::
 
-    python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (about 10 minutes)
+    python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (about 15 minutes)
     python benchmarks/portable_speed.py --method fixed_forward --frames 10000 --rounds 1
 """
 
@@ -23,13 +24,19 @@ from pathlib import Path
 
 import harness
 
-from activeperc_rl.methods import METHODS
-from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
 
-MODES = {  # name: (extra environment, extra flags) of activeperc-train
-    "default": ({}, ()),  # torch's own choice (AVX-512 on a CPU that has it)
-    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, ()),  # only the convolutions' library capped
-    "portable": ({}, ("--portable",)),  # every variable of activeperc_rl.portable.PINNED_ENVIRONMENT
+import golden  # noqa: E402 (tests/ on the path first)
+
+from activeperc_rl.methods import METHODS  # noqa: E402
+from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest  # noqa: E402
+
+MODES = {  # name: (extra environment, extra flags of activeperc-train, whether torch may call oneDNN)
+    "default": ({}, (), True),  # torch's own choice (AVX-512 on a CPU that has it)
+    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, (), True),  # only the convolutions' library capped
+    "portable": ({}, ("--portable",), True),  # every variable of activeperc_rl.portable.PINNED_ENVIRONMENT
+    "portable_no_onednn": (PINNED_ENVIRONMENT, (), False),  # portable's pins, oneDNN off (portable_bits' candidate)
 }
 
 
@@ -37,9 +44,10 @@ def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
     """Train in ``mode`` into ``out``: (frames/s after the first iteration, digest of the saved networks)."""
     import torch
 
-    extra, flags = MODES[mode]
+    extra, flags, onednn = MODES[mode]
     environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | extra
-    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, "--frames", str(frames), *flags]
+    launcher = ["-m", "activeperc_rl.cli"] if onednn else ["-c", golden.PINNED_LAUNCHER.format(False)]
+    command = [sys.executable, *launcher, "--method", method, "--frames", str(frames), *flags]
     command += ["--eval-episodes", "0", "--no-progress", "--out", str(out)]
     subprocess.run(command, env=environment, check=True, capture_output=True, text=True)
     with open(out / "metrics.csv", newline="") as file:

@@ -364,10 +364,11 @@ def table_lines(text: str) -> list[str]:
 
 def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
     """Every mode trains, and a mode's runs in two rounds save the same networks (one digest each)."""
-    load_script("portable_speed").main(["--method", "fixed_forward", "--frames", "512", "--rounds", "2"])
+    speed = load_script("portable_speed")
+    speed.main(["--method", "fixed_forward", "--frames", "512", "--rounds", "2"])
     rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
-    assert {"default", "onednn", "portable"} <= set(rows)
-    assert all(len(rows[mode].split(", ")) == 1 for mode in ("default", "onednn", "portable")), rows
+    assert set(speed.MODES) == {"default", "onednn", "portable", "portable_no_onednn"} <= set(rows)
+    assert all(len(rows[mode].split(", ")) == 1 for mode in speed.MODES), rows
 
 
 def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, monkeypatch, capsys):
