@@ -24,6 +24,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("look_values.py", ["RUN", "--cycles", "0"], "--rooms and --cycles must be >= 1"),
         ("pan_vs_bearing.py", ["RUN", "--episodes", "0"], "--episodes=0 must be >= 1"),
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
+        ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -146,3 +147,20 @@ def test_pan_vs_bearing_plays_the_evaluations_episodes(tmp_path):
     assert np.abs(learned["bearing"]).max() <= 180 and np.abs(learned["pan"]).max() <= config.env.pan_range + 1e-3
     rows = (tmp_path / "r.csv").read_text().splitlines()
     assert rows[0].startswith("run,looker,episodes") and len(rows) == 3 and (tmp_path / "f.png").stat().st_size > 0
+
+
+def test_best_look_labels_bins_a_runs_shares_and_refuses_a_run_without_them(tmp_path, capsys):
+    sys.path.insert(0, str(EXPERIMENTS))
+    import best_look_labels
+
+    header = "frames,e1_pan_rate,looker_entropy,best_look_agreement,best_look_left,best_look_right\n"
+    (tmp_path / "metrics.csv").write_text(header + "100,0.1,1.0,0.5,0.2,0.3\n200,0.3,0.8,0.7,0.4,0.1\n300,0,0,1,0,0\n")
+    out = tmp_path / "labels.csv"
+    assert best_look_labels.main([str(tmp_path), "--bin", "250", "--csv", str(out)]) == 0
+    first, second = best_look_labels.binned(tmp_path, 250)
+    assert first["frames"] == "0-250" and first["e1_pan_rate"] == pytest.approx(0.2)
+    assert first["agreement"] == pytest.approx(0.6) and first["best_hold"] == pytest.approx(0.5)
+    assert second["best_hold"] == 1.0 and out.read_text().count("\n") == 3
+    (tmp_path / "metrics.csv").write_text(header + "100,0.1,1.0,nan,nan,nan\n")
+    with pytest.raises(SystemExit, match="has no best-look shares"):
+        best_look_labels.main([str(tmp_path)])
