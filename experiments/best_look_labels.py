@@ -5,11 +5,12 @@ Run from the repository root::
     python experiments/best_look_labels.py runs/meta-seed0-TIME
     python experiments/best_look_labels.py RUN... --bin 200000 --csv labels.csv
 
-For each bin of ``--bin`` frames of each run (a ``meta`` run with ``--looker-credit best_look`` or ``every_look``)
-it prints the means over the bin's iterations of: E1's pan rate, ``phi2``'s entropy, how often ``phi2``'s argmax
-was the critic's best look on D2's cycles (``agreement``), and how often that best look was a pan left, a pan right
-or 'hold'. Labels spread evenly over the three looks say the critic values them alike; an agreement near the share
-of the commonest label says ``phi2`` learned that label's frequency and little else.
+For each run (a ``meta`` run with ``--looker-credit best_look`` or ``every_look``) it prints one row per bin of
+``--bin`` frames (the frames logged first and last in it, its iterations) with the means over the bin's iterations
+of: E1's pan rate, ``phi2``'s entropy, how often ``phi2``'s argmax was the critic's best look on D2's cycles
+(``agreement``), and how often that best look was a pan left, a pan right or 'hold'. Labels spread evenly over the
+three looks say the critic values them alike; an agreement near the share of the commonest label says ``phi2``
+learned that label's frequency and little else.
 """
 
 from __future__ import annotations
@@ -23,7 +24,17 @@ from statistics import fmean
 from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_rl.atomic import atomic_path
 
-COLUMNS = ("run", "frames", "e1_pan_rate", "looker_entropy", "agreement", "best_left", "best_right", "best_hold")
+COLUMNS = (
+    "run",
+    "frames",
+    "iterations",
+    "e1_pan_rate",
+    "looker_entropy",
+    "agreement",
+    "best_left",
+    "best_right",
+    "best_hold",
+)
 SOURCES = {  # column: metrics.csv's column
     "e1_pan_rate": "e1_pan_rate",
     "looker_entropy": "looker_entropy",
@@ -51,10 +62,11 @@ def binned(run: Path, size: int) -> list[dict]:
     for row in read_metrics(run):
         bins.setdefault(int(row["frames"]) // size, []).append(row)
     out = []
-    for index, rows in sorted(bins.items()):
+    for _, rows in sorted(bins.items()):
         means = {column: fmean(float(row[source]) for row in rows) for column, source in SOURCES.items()}
         hold = 1 - means["best_left"] - means["best_right"]
-        out.append({"run": str(run), "frames": f"{index * size}-{(index + 1) * size}"} | means | {"best_hold": hold})
+        frames = f"{rows[0]['frames']}-{rows[-1]['frames']}"  # the first and last logged in the bin
+        out.append({"run": str(run), "frames": frames, "iterations": len(rows)} | means | {"best_hold": hold})
     return out
 
 
@@ -79,9 +91,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def cell(value: str | float, digits: int) -> str:
+def cell(value: str | int | float, digits: int) -> str:
     """A row's value as text: a float with ``digits`` decimals."""
-    return f"{value:.{digits}f}" if isinstance(value, float) else value
+    return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
 
 
 if __name__ == "__main__":

@@ -158,7 +158,7 @@ def test_best_look_labels_bins_a_runs_shares_and_refuses_a_run_without_them(tmp_
     out = tmp_path / "labels.csv"
     assert best_look_labels.main([str(tmp_path), "--bin", "250", "--csv", str(out)]) == 0
     first, second = best_look_labels.binned(tmp_path, 250)
-    assert first["frames"] == "0-250" and first["e1_pan_rate"] == pytest.approx(0.2)
+    assert (first["frames"], first["iterations"]) == ("100-200", 2) and first["e1_pan_rate"] == pytest.approx(0.2)
     assert first["agreement"] == pytest.approx(0.6) and first["best_hold"] == pytest.approx(0.5)
     assert second["best_hold"] == 1.0 and out.read_text().count("\n") == 3
     (tmp_path / "metrics.csv").write_text(header + "100,0.1,1.0,nan,nan,nan\n")
