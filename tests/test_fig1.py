@@ -468,18 +468,22 @@ def test_committed_looker_tables_have_looker_stats_columns(table):
 
 
 def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
-    """The README's spread over seeds is what experiments/results/readme_seeds/summary.csv gives (2 digits)."""
-    rows = read_csv(ROOT / "experiments" / "results" / "readme_seeds" / "summary.csv")
+    """The README's numbers of its first command are experiments/results/readme_v3/summary.csv's (2 digits): seed
+    0's run (the command itself) and the spread over seeds 0-4 of it, of its Fixed_Forward and of their difference."""
+    rows = read_csv(ROOT / "experiments" / "results" / "readme_v3" / "summary.csv")
     readme = (ROOT / "README.md").read_text()
+    success = {}
     for method in ("meta_eps0.3", "fixed_forward"):
         runs = [r for r in rows if r["method"] == method]
-        assert [r["seed"] for r in runs] == ["0", "1", "2", "3", "4"]
-        mean, half = aggregate.mean_ci([float(r["final_success_rate"]) for r in runs])
-        assert f"{mean:.2f} ± {half:.2f}" in readme, (method, mean, half)
+        assert [r["seed"] for r in runs] == ["0", "1", "2", "3", "4"] and {r["fov"] for r in runs} == {"60"}
+        success[method] = [float(r["final_success_rate"]) for r in runs]
+        assert "{:.2f} ± {:.2f}".format(*aggregate.mean_ci(success[method])) in readme, method
     seed0 = next(r for r in rows if r["method"] == "meta_eps0.3" and r["seed"] == "0")
-    row = "| `activeperc-train` (`meta`): the learned mover and looker | {:.2f} | {:.2f} ± {:.2f} |"
-    meta = [float(r["final_success_rate"]) for r in rows if r["method"] == "meta_eps0.3"]
-    assert row.format(float(seed0["final_success_rate"]), *aggregate.mean_ci(meta)) in readme
+    row = "| the first command (`meta`): the learned mover and looker | {:.2f} | {:.2f} ± {:.2f} |"
+    assert row.format(float(seed0["final_success_rate"]), *aggregate.mean_ci(success["meta_eps0.3"])) in readme
+    assert "| uniformly random | {:.2f} | |".format(float(seed0["random_success_rate"])) in readme
+    paired = [m - f for m, f in zip(success["meta_eps0.3"], success["fixed_forward"], strict=True)]
+    assert "by {:+.2f} ± {:.2f}".format(*aggregate.mean_ci(paired)) in readme
 
 
 def test_the_seed_by_seed_claims_of_the_docs_hold_in_the_committed_sweeps():
