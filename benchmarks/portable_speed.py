@@ -6,7 +6,7 @@ agree.
 
 Run it from the repository root::
 
-    python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (about 15 minutes)
+    python benchmarks/portable_speed.py                    # meta, 20,000 frames, 3 rounds (10 min for 3 modes, more)
     python benchmarks/portable_speed.py --method fixed_forward --frames 10000 --rounds 1
 """
 
