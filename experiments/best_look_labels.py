@@ -63,7 +63,8 @@ def binned(run: Path, size: int) -> list[dict]:
         bins.setdefault(int(row["frames"]) // size, []).append(row)
     out = []
     for _, rows in sorted(bins.items()):
-        means = {column: fmean(float(row[source]) for row in rows) for column, source in SOURCES.items()}
+        # a row resumed from an older metrics.csv is blank in the shares' columns: nan, as the credits without them
+        means = {column: fmean(float(row[source] or "nan") for row in rows) for column, source in SOURCES.items()}
         hold = 1 - means["best_left"] - means["best_right"]
         frames = f"{rows[0]['frames']}-{rows[-1]['frames']}"  # the first and last logged in the bin
         out.append({"run": str(run), "frames": frames, "iterations": len(rows)} | means | {"best_hold": hold})

@@ -1,5 +1,6 @@
 """The scripts of experiments/ outside fig1: a bad argument is one line naming it, before any work."""
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -161,6 +162,9 @@ def test_best_look_labels_bins_a_runs_shares_and_refuses_a_run_without_them(tmp_
     assert (first["frames"], first["iterations"]) == ("100-200", 2) and first["e1_pan_rate"] == pytest.approx(0.2)
     assert first["agreement"] == pytest.approx(0.6) and first["best_hold"] == pytest.approx(0.5)
     assert second["best_hold"] == 1.0 and out.read_text().count("\n") == 3
+    (tmp_path / "metrics.csv").write_text(header + "100,0.1,1.0,,,\n200,0.3,0.8,0.7,0.4,0.1\n")
+    (blank_and_logged,) = best_look_labels.binned(tmp_path, 250)  # a row of an older log is blank in the shares
+    assert math.isnan(blank_and_logged["agreement"]) and blank_and_logged["iterations"] == 2
     (tmp_path / "metrics.csv").write_text(header + "100,0.1,1.0,nan,nan,nan\n")
     with pytest.raises(SystemExit, match="has no best-look shares"):
         best_look_labels.main([str(tmp_path)])
