@@ -184,6 +184,7 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
 
 V3_SWEEP = "experiments/results/v3_best_look"
 V3_FRAME_STACK = "experiments/results/v3_frame_stack"
+V3_BEARING = "experiments/results/v3_bearing"
 
 
 def v3_sweep(folder: str) -> str:
@@ -479,6 +480,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "room-v3-looks": ("reproduction.md", lambda: v3_looks(V3_SWEEP)),
     "room-v3-frame-stack": ("reproduction.md", lambda: v3_sweep(V3_FRAME_STACK)),
     "room-v3-frame-stack-looks": ("reproduction.md", lambda: v3_looks(V3_FRAME_STACK)),
+    "room-v3-bearing": ("reproduction.md", lambda: v3_sweep(V3_BEARING)),
+    "room-v3-bearing-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING)),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
