@@ -8,8 +8,10 @@ simulator's own, shared with the default backend. Needs the ``warp`` extra.
 from __future__ import annotations
 
 import copy
+import functools
 import importlib.util
 import logging
+from collections.abc import Callable
 
 import mujoco
 import mujoco.batch
@@ -52,6 +54,37 @@ def _warp():
     return warp, mujoco_warp
 
 
+def replay(graphs: dict, key, device: str, work: Callable[[], None]) -> None:
+    """Run ``work`` (launches of Warp kernels on fixed arrays) on ``device``: on a GPU as a CUDA graph, captured at
+    its first run under ``key`` in ``graphs`` and replayed after, which saves launching every kernel from Python."""
+    warp, _ = _warp()
+    if not device.startswith("cuda"):
+        work()
+        return
+    if key not in graphs:
+        with warp.ScopedCapture() as capture:
+            work()
+        graphs[key] = capture.graph
+    warp.capture_launch(graphs[key])
+
+
+@functools.cache
+def _rgb_bytes_kernel():
+    """The Warp kernel that unpacks the renderer's ABGR words of one camera into (world, y, x, rgb) bytes."""
+    warp, _ = _warp()
+
+    @warp.kernel
+    def rgb_bytes(packed: warp.array2d(dtype=warp.uint32), first: int, out: warp.array4d(dtype=warp.uint8)):
+        world, pixel = warp.tid()
+        word = packed[world, first + pixel]
+        y, x = pixel // out.shape[2], pixel % out.shape[2]
+        out[world, y, x, 0] = warp.uint8((word >> warp.uint32(16)) & warp.uint32(0xFF))
+        out[world, y, x, 1] = warp.uint8((word >> warp.uint32(8)) & warp.uint32(0xFF))
+        out[world, y, x, 2] = warp.uint8(word & warp.uint32(0xFF))
+
+    return rgb_bytes
+
+
 def warp_model(model: mujoco.MjModel):
     """The scene on the current Warp device (MuJoCo Warp needs the midphase, which only speeds collisions up)."""
     _, mujoco_warp = _warp()
@@ -74,22 +107,31 @@ class WarpBatch(mujoco.batch.Batch):
             self.warp_model, self.warp_host_model = warp_model(model)
             self._warp_data = mujoco_warp.make_data(self.warp_host_model, nworld=nsim)
         self._host_rows = {name: self.bind(name) for name in ("time", *STEPPED)}
+        self._graphs = {}  # nstep -> the CUDA graph of that many steps (on a GPU)
 
     def step(self, ids=None, nstep: int = 1, stage=mujoco.mjtStage.mjSTAGE_NONE) -> None:
         """Advance the rooms ``ids`` (all when ``None``) by ``nstep`` physics steps; the others keep their state."""
         if stage != mujoco.mjtStage.mjSTAGE_NONE:
             raise ValueError(f"stage={stage!r} is invalid: the warp backend computes no stages after a step")
-        warp, mujoco_warp = _warp()
+        warp, _ = _warp()
         ids = np.arange(self.nsim) if ids is None else np.asarray(ids)
         with warp.ScopedDevice(self.device):
             for name in STEPPED:
-                field = getattr(self._warp_data, name)
-                field.assign(warp.array(self._host_rows[name].astype(np.float32), dtype=field.dtype))
-            for _ in range(nstep):
-                mujoco_warp.step(self.warp_model, self._warp_data)
+                getattr(self._warp_data, name).assign(self._host_rows[name].astype(np.float32))
+            self.advance(nstep)
             for name in STEPPED:
                 self._host_rows[name][ids] = getattr(self._warp_data, name).numpy()[ids]
         self._host_rows["time"][ids] += nstep * self.model.opt.timestep
+
+    def advance(self, nstep: int) -> None:
+        """``nstep`` physics steps of every room's state on the device; the batch's rows are left as they were."""
+        _, mujoco_warp = _warp()
+
+        def steps() -> None:
+            for _ in range(nstep):
+                mujoco_warp.step(self.warp_model, self._warp_data)
+
+        replay(self._graphs, nstep, self.device, steps)
 
 
 class WarpRenderer:
@@ -121,7 +163,9 @@ class WarpRenderer:
                 cam_active=[camera == eye for camera in range(model.ncam)],
                 enabled_geom_groups=[0, 1],  # the eye does not see the robot's own geoms (group 2)
             )
-            self._rgb = warp.zeros((max_views, height, width), dtype=warp.vec3f)
+            self._rgb = warp.zeros((max_views, height, width, 3), dtype=warp.uint8)
+        self._first_pixel = int(self._context.rgb_adr.numpy()[0])  # the eye's pixels in the renderer's rows
+        self._graphs = {}  # the CUDA graph of a pass (on a GPU)
 
     def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, tiles: np.ndarray | None = None) -> np.ndarray:
         """First-person views of the rooms whose states are given: (n, height, width, 3) uint8 (``tiles`` is
@@ -134,19 +178,33 @@ class WarpRenderer:
 
     def _draw(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Up to ``views_per_pass`` views in one pass of the renderer."""
-        warp, mujoco_warp = _warp()
+        warp, _ = _warp()
         n, worlds = len(qpos), self.views_per_pass
         rows = np.minimum(np.arange(worlds), n - 1)  # the unused worlds repeat the last view
         with warp.ScopedDevice(self.device):
-            self._data.qpos.assign(warp.array(qpos[rows].astype(np.float32)))
-            self._data.mocap_pos.assign(warp.array(mocap_pos[rows].astype(np.float32), dtype=warp.vec3))
-            mujoco_warp.kinematics(self._model, self._data)
-            mujoco_warp.camlight(self._model, self._data)
-            mujoco_warp.refit_bvh(self._model, self._data, self._context)
-            mujoco_warp.render(self._model, self._data, self._context)
-            mujoco_warp.get_rgb(self._context, 0, self._rgb)
-            rgb = self._rgb.numpy()[:n]
-        return np.rint(np.clip(rgb, 0.0, 1.0) * 255).astype(np.uint8)
+            self._data.qpos.assign(qpos[rows].astype(np.float32))
+            self._data.mocap_pos.assign(mocap_pos[rows].astype(np.float32))
+            self.draw()
+            return self._rgb[:n].numpy()
+
+    def draw(self) -> None:
+        """Draw the views of every world of the renderer's data on the device, as bytes (:meth:`render` reads them)."""
+        replay(self._graphs, "pass", self.device, self._pass)
+
+    def _pass(self) -> None:
+        """The kernels of :meth:`draw`."""
+        warp, mujoco_warp = _warp()
+        mujoco_warp.kinematics(self._model, self._data)
+        mujoco_warp.camlight(self._model, self._data)
+        mujoco_warp.refit_bvh(self._model, self._data, self._context)
+        mujoco_warp.render(self._model, self._data, self._context)
+        words = self.width * self.height
+        warp.launch(
+            _rgb_bytes_kernel(),
+            dim=(self.views_per_pass, words),
+            inputs=[self._context.rgb_data, self._first_pixel],
+            outputs=[self._rgb],
+        )
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Bird's-eye map of one room, drawn by the OpenGL renderer (:meth:`TiledRenderer.render_map`)."""

@@ -253,14 +253,15 @@ def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
 # ---------------------------------------------------------------------------------------------------------- our rooms
 
 
-def random_core(num_envs: int, seed: int, version: int = 1):
-    """A ``Simulator(num_envs)`` of room ``version`` reset from ``seed`` with its first views rendered, and the rng of
-    its actions."""
+def random_core(num_envs: int, seed: int, version: int = 1, backend: str = "mujoco", device: str = "cpu"):
+    """A ``Simulator(num_envs)`` of room ``version`` on ``backend`` reset from ``seed`` with its first views rendered,
+    and the rng of its actions."""
     import numpy as np
 
     import activeperc_env
 
-    sim = activeperc_env.Simulator(activeperc_env.EnvConfig(version=version), num_envs=num_envs)
+    config = activeperc_env.EnvConfig(version=version)
+    sim = activeperc_env.Simulator(config, num_envs=num_envs, backend=backend, device=device)
     sim.reset(seeds=seed + np.arange(num_envs))
     sim.render()
     return sim, np.random.default_rng(seed)

@@ -1,24 +1,41 @@
 #!/usr/bin/env bash
-# The warp backend on a CUDA GPU in one call: install, its tests, its agreement with the default backend, and its
-# speed; every output goes to benchmarks/results/<gpu>/ (or $OUT when set, as on the device machine).
+# The warp backend on a CUDA GPU in one call: where its cycle goes, its CUDA tests, its agreement with the default
+# backend, and its speed in the TorchRL env and in training, with the OpenGL backend beside it on the same machine.
+# The log goes to warp_gpu.log, the tables to CSVs, in benchmarks/results/<gpu>/ (or $OUT when set).
 #
-#     bash benchmarks/warp_gpu.sh            # about 10 minutes on an H100/H200
-set -euo pipefail
+#     bash benchmarks/warp_gpu.sh               # first makes .venv-gpu and installs the project's train, dev, warp extras
+#     bash benchmarks/warp_gpu.sh --no-install  # the python on PATH, as it is
+set -uo pipefail
 cd "$(dirname "$0")/.."
-python3 -m venv .venv-gpu
-. .venv-gpu/bin/activate
-pip install --quiet --upgrade pip
-pip install --quiet torch==2.13.0 -e ".[train,dev,warp]"
-gpu=$(python -c "import torch; print(torch.cuda.get_device_name(0).split()[-1].lower())")
+if [[ "${1:-}" != --no-install ]]; then
+  python3 -m venv .venv-gpu && . .venv-gpu/bin/activate || exit 1
+  pip install --quiet --upgrade pip && pip install --quiet torch==2.13.0 -e ".[train,dev,warp]" || exit 1
+fi
+gpu=$(python -c "import torch; print(torch.cuda.get_device_name(0).split()[-1].lower())") || exit 1
 out=${OUT:-benchmarks/results/$gpu}
+log=$out/warp_gpu.log
 mkdir -p "$out"
-export MUJOCO_GL=egl
-nvidia-smi > "$out/warp_machine.txt" 2>&1 || true
-pytest -q tests/test_warp.py 2>&1 | tee "$out/warp_tests.txt"
-python experiments/warp_agreement.py --device cuda 2>&1 | tee "$out/warp_agreement.txt"
-python benchmarks/env_scaling.py --backend warp --device cuda --num-envs 1024 4096 16384 --rounds 1 --no-peer \
-  --csv "$out/warp_env_scaling.csv" 2>&1 | tee "$out/warp_env_scaling.txt"
-python benchmarks/env_scaling.py --num-envs 1024 4096 --rounds 1 --no-peer --device cuda \
-  --csv "$out/opengl_env_scaling.csv" 2>&1 | tee "$out/opengl_env_scaling.txt"
-python benchmarks/train_speed.py --methods meta --backend warp --device cuda --num-envs 256 --rounds 1 --no-peer \
-  2>&1 | tee "$out/warp_train_speed.txt"
+export MUJOCO_GL=egl PYTHONUNBUFFERED=1
+
+# one step: its command, its output and how it ended, in the log; a step past its limit (seconds) is stopped
+step() {
+  local limit=$1 start=$SECONDS
+  shift
+  echo "== $(date -u +%FT%TZ) \$ $*" | tee -a "$log"
+  timeout "$limit" "$@" 2>&1 | tee -a "$log"
+  echo "== exit ${PIPESTATUS[0]} after $((SECONDS - start)) s" | tee -a "$log"
+}
+
+step 20 nvidia-smi
+step 60 python -c "import sys, torch, mujoco, warp, mujoco_warp; print(sys.version.split()[0], 'torch', torch.__version__,
+  'mujoco', mujoco.__version__, 'warp', warp.__version__, 'mujoco_warp', mujoco_warp.__version__)"
+step 240 python benchmarks/warp_profile.py --device cuda --num-envs 1024 4096 16384 --seconds 3 --warmup 2 \
+  --csv "$out/warp_profile.csv"
+step 120 python -m pytest -q -p no:cacheprovider tests/test_warp.py -k cuda
+step 60 python experiments/warp_agreement.py --device cuda
+step 150 python benchmarks/env_scaling.py --backend warp --device cuda --num-envs 1024 4096 16384 --seconds 3 \
+  --warmup 2 --rounds 1 --no-peer --csv "$out/warp_env_scaling.csv"
+step 120 python benchmarks/train_speed.py --methods meta --backend warp --device cuda --num-envs 1024 --seconds 20 \
+  --rounds 1 --no-peer --parts
+step 60 python benchmarks/env_scaling.py --num-envs 1024 --seconds 3 --warmup 2 --rounds 1 --no-peer --device cuda \
+  --csv "$out/opengl_env_scaling.csv"
