@@ -74,7 +74,7 @@ def profile(num_envs: int, device: str, seconds: float, warmup: float, seed: int
             **{f"{part}_ms": 1e3 * per_cycle[part] for part in harness.SIMULATOR_PARTS},
             "device_physics_ms": device_ms(lambda: batch.advance(sim.substeps), device, repeats),
             "device_render_ms": device_ms(renderer.draw, device, repeats),
-            "views_to_host_ms": device_ms(lambda: renderer._rgb.numpy(), device, repeats),
+            "views_to_host_ms": device_ms(lambda: renderer.views_on_host(num_envs), device, repeats),
             "device_mib_per_room": None if before is None else (before - after) / num_envs,
         }
     finally:
