@@ -95,6 +95,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=harness.at_least(int, "seed", 0), default=0)
     parser.add_argument("--csv", type=Path, help="write the rows to this CSV (default: none)")
     args = parser.parse_args(argv)
+    from activeperc_env.warp_backend import check_backend
+
+    try:
+        check_backend("warp", args.device)
+    except ValueError as error:
+        parser.error(str(error))
     harness.refuse_unwritable(parser, {"--csv": args.csv})
     return args
 
@@ -102,9 +108,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> list[dict]:
     """Profile every N and print a row each; return the rows."""
     args = parse_args(argv)
-    from activeperc_env.warp_backend import check_backend
-
-    check_backend("warp", args.device)
     print(f"activeperc warp backend profile on {args.device}: {args.seconds:g} s per N after {args.warmup:g} s warm-up")
     print(harness.machine_line(harness.machine_info()))
     print(" | ".join(CSV_COLUMNS))

@@ -439,6 +439,57 @@ def h100_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
+H200_RUNS = ("d7a6f27", "772515a")  # the folders of benchmarks/results/h200/, each the code it measured
+
+
+def h200_profile() -> str:
+    """Where a cycle of the bare warp ``Simulator`` went on the H200 machine, by code and number of rooms."""
+    lines = [
+        [
+            f"`{code}`",
+            f"{int(r['num_envs']):,}",
+            f"{float(r['cycles_per_s']):,.0f}",
+            *(f"{float(r[key]):.1f}" for key in ("move_ms", "render_ms", "device_physics_ms", "device_render_ms")),
+            f"{float(r['views_to_host_ms']):.1f}",
+            f"{float(r['device_mib_per_room']):.2f}",
+        ]
+        for code in H200_RUNS
+        for r in read(f"{BENCH}/h200/{code}/warp_profile.csv")
+    ]
+    header = ["code", "rooms", "cycles/s", "move ms", "render ms", "device physics ms", "device render pass ms",
+              "views to host ms", "device MiB per room"]  # fmt: skip
+    return markdown(header, lines)
+
+
+def h200_env() -> str:
+    """Cycles/s of the TorchRL env on the H200 machine, by backend, code and number of rooms."""
+    runs = [("warp", code, f"{code}/warp_env_scaling.csv") for code in H200_RUNS]
+    runs.append(("mujoco (OpenGL on the GPU)", H200_RUNS[0], f"{H200_RUNS[0]}/opengl_env_scaling.csv"))
+    lines = [
+        [backend, f"`{code}`", f"{int(r['num_envs']):,}", f"{float(r['cycles_per_s']):,.0f}"]
+        for backend, code, path in runs
+        for r in read(f"{BENCH}/h200/{path}")
+    ]
+    return markdown(["backend", "code", "rooms", "cycles/s (summed over rooms)"], lines)
+
+
+def h200_train() -> str:
+    """`meta` training frames/s on the H200 machine by backend and number of rooms."""
+    rows = read(f"{BENCH}/h200/train.csv")
+    lines = [
+        [
+            r["backend"],
+            f"`{r['code']}`",
+            f"{int(r['rooms']):,}",
+            f"{int(r['frames_per_s']):,}",
+            f"{r['collect_percent']} %",
+        ]
+        for r in rows
+    ]
+    header = ["backend", "code", "rooms", "`meta` frames/s", "collection's share"]
+    return markdown(header, lines) + runs_footer(rows)
+
+
 def train_flags() -> str:
     """``activeperc-train``'s flags as its ``--help`` gives them: each flag, its default and its meaning."""
     from activeperc_rl.cli import build_parser
@@ -510,6 +561,9 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "workers-allocator": ("performance.md", workers_allocator),
     "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
     "h100-train": ("performance.md", h100_train),
+    "h200-warp-profile": ("performance.md", h200_profile),
+    "h200-warp-env": ("performance.md", h200_env),
+    "h200-warp-train": ("performance.md", h200_train),
 }
 
 

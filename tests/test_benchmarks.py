@@ -114,6 +114,8 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
         ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
         ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
         ("portable_bits", ["--only", "nothing"], "invalid choice: 'nothing'"),
+        ("warp_profile", ["--repeats", "0"], "repeats must be >= 1, got 0"),
+        ("warp_profile", ["--device", "tpu"], "device='tpu' is invalid"),
     ],
 )
 def test_every_script_refuses_bad_values_before_timing(script, argv, error, capsys):
@@ -387,3 +389,16 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     assert set(stored["portable"]) == {"OtherVendor", vendor} and set(stored["portable_no_onednn"]) == {vendor}
     rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
     assert rows["portable"] == "no" and rows["portable_no_onednn"] == "one vendor so far"
+
+
+def test_warp_profile_splits_a_cycle_and_times_the_device_parts(tmp_path, capsys):
+    pytest.importorskip("mujoco_warp", reason="the warp extra is not installed")
+    out = tmp_path / "profile.csv"
+    argv = ["--device", "cpu", "--num-envs", "2", "--seconds", "0.2", "--warmup", "0", "--repeats", "1"]
+    (row,) = load_script("warp_profile").main([*argv, "--csv", str(out)])
+    assert row["cycles_per_s"] > 0 and row["move_ms"] > 0 and row["render_ms"] > 0
+    assert row["device_physics_ms"] > 0 and row["device_render_ms"] > 0
+    assert row["device_mib_per_room"] is None  # Warp's CPU device reports no free memory
+    with open(out, newline="") as file:
+        (written,) = list(csv.DictReader(file))
+    assert int(written["num_envs"]) == 2 and written["device_mib_per_room"] == ""
