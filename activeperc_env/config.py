@@ -103,6 +103,12 @@ class EnvConfig:
     heading; they meet walls and occluders, never the goal."""
     range_max: float = 2.0
     """Distance at which the range sensor's rays stop, in metres: a ray that meets nothing reads range_max."""
+    depth: bool = False
+    """Add 'depth' to the observation: (height, width) float32, the distance in metres along the camera's axis to
+    what each pixel shows (0 where nothing is seen)."""
+    segmentation: bool = False
+    """Add 'segmentation' to the observation: (height, width) int32, the id of the model's geom each pixel shows
+    (-1 where none is seen)."""
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
     version: int = 1
@@ -134,6 +140,8 @@ class EnvConfig:
             "turn_speed": is_number(self.turn_speed) and 0.0 < self.turn_speed <= 720.0,
             "range_rays": is_int(self.range_rays) and 0 <= self.range_rays <= MAX_RANGE_RAYS,
             "range_max": is_number(self.range_max) and 0.2 <= self.range_max <= 10.0,
+            "depth": isinstance(self.depth, bool),
+            "segmentation": isinstance(self.segmentation, bool),
             "looker_reward": isinstance(self.looker_reward, str) and self.looker_reward in LOOKER_REWARDS,
         }
         allowed = {
@@ -152,6 +160,8 @@ class EnvConfig:
             "turn_speed": "degrees per second in (0, 720]",
             "range_rays": f"an int in [0, {MAX_RANGE_RAYS}]",
             "range_max": "metres in [0.2, 10]",
+            "depth": "True or False",
+            "segmentation": "True or False",
             "looker_reward": f"one of {LOOKER_REWARDS}",
         }
         for field, ok in checks.items():

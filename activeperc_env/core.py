@@ -392,11 +392,35 @@ class Simulator:
 
     def observe(self, ids=None) -> dict[str, np.ndarray]:
         """The rooms' observations as every API gives them: ``image`` (:meth:`render`), ``pan`` (:meth:`pan`) and,
-        with a range sensor (``range_rays`` > 0), ``range`` (:meth:`ranges`)."""
+        with a range sensor (``range_rays`` > 0), ``range`` (:meth:`ranges`); with ``depth`` and ``segmentation``
+        set in the config, ``depth`` (:meth:`render_depth`) and ``segmentation`` (:meth:`render_segmentation`)."""
         observation = {"image": self.render(ids), "pan": self.pan(ids)}
         if self.config.range_rays:
             observation["range"] = self.ranges(ids)
+        if self.config.depth:
+            observation["depth"] = self.render_depth(ids)
+        if self.config.segmentation:
+            observation["segmentation"] = self.render_segmentation(ids)
         return observation
+
+    def render_depth(self, ids=None) -> np.ndarray:
+        """Depth of the camera images of the rooms ``ids``: (n, height, width) float32, the distance in metres along
+        the camera's axis to what each pixel shows, 0 where nothing is seen; needs ``EnvConfig(depth=True)``."""
+        return self._layer("depth", ids)
+
+    def render_segmentation(self, ids=None) -> np.ndarray:
+        """What each pixel of the camera images of the rooms ``ids`` shows: (n, height, width) int32 ids of the
+        model's geoms (``mujoco.mj_id2name(sim.model, mujoco.mjtObj.mjOBJ_GEOM, id)``), -1 where none is seen; needs
+        ``EnvConfig(segmentation=True)``."""
+        return self._layer("segmentation", ids)
+
+    def _layer(self, name: str, ids) -> np.ndarray:
+        """The renderer's ``render_depth`` or ``render_segmentation`` of the rooms ``ids``, drawn anew."""
+        if not getattr(self.config, name):
+            raise ValueError(f"render_{name}() needs EnvConfig({name}=True); this room has {name}=False")
+        ids = self._as_ids(ids)
+        self.require_started(f"render_{name}()", ids)
+        return getattr(self.renderer, f"render_{name}")(self._qpos[ids], self._mocap_pos[ids])
 
     def ranges(self, ids=None) -> np.ndarray:
         """The range sensor's readings (:mod:`activeperc_env.sensors`): (n, range_rays) float32 metres, right first."""
@@ -479,7 +503,9 @@ class Simulator:
         """The renderer, created on first use so that physics-only users need no GL."""
         if self._renderer is None and self.backend == "warp":
             cfg = self.config
-            self._renderer = WarpRenderer(self._batch, cfg.width, cfg.height, self.num_envs, cfg.fov)
+            self._renderer = WarpRenderer(
+                self._batch, cfg.width, cfg.height, self.num_envs, cfg.fov, cfg.depth, cfg.segmentation
+            )
         if self._renderer is None:
             self._renderer = TiledRenderer(
                 self.model, self.config.width, self.config.height, self.num_envs, self.config.fov

@@ -128,17 +128,87 @@ class TiledRenderer:
             row, col = divmod(int(tile), self.cols)
             rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
             mujoco.mjr_render(rect, self._scene, self._ctx)
+        area = self._area(tiles)
+        pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
+        mujoco.mjr_readPixels(pixels, None, area, self._ctx)
+        out[views] = self._untile(pixels, area)[tiles]
+
+    def _area(self, tiles: np.ndarray) -> mujoco.MjrRect:
+        """The part of the buffer that holds ``tiles``: whole rows of tiles from the bottom left."""
         top = int(tiles.max())
         used_rows = top // self.cols + 1
         used_cols = self.cols if used_rows > 1 else top + 1
-        area = mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
-        pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
-        mujoco.mjr_readPixels(pixels, None, area, self._ctx)
-        # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom; in the
-        # read area, tile t is then grid[t]
-        grid = pixels.reshape(used_rows, self.height, used_cols, self.width, 3)
-        grid = grid[:, ::-1].transpose(0, 2, 1, 3, 4).reshape(-1, self.height, self.width, 3)
-        out[views] = grid[tiles]
+        return mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
+
+    def _untile(self, pixels: np.ndarray, area: mujoco.MjrRect) -> np.ndarray:
+        """The views in ``pixels`` (an ``area`` read back, (height, width, ...)): (tiles, height, width, ...), top
+        row first."""
+        # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom
+        rows, cols, rest = area.height // self.height, area.width // self.width, pixels.shape[2:]
+        grid = pixels.reshape(rows, self.height, cols, self.width, *rest)[:, ::-1]
+        return grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)
+
+    def render_depth(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """Depth of the first-person views of the simulations given: (n, height, width) float32, the distance in
+        metres along the camera's axis to what each pixel shows, 0 where nothing is seen."""
+        extent = self._model.stat.extent
+        near, far = self._model.vis.map.znear * extent, self._model.vis.map.zfar * extent
+        buffer = self._layers(qpos, mocap_pos, segmentation=False)  # OpenGL's depth in [0, 1], not linear
+        depth = near / (1.0 - buffer * (1.0 - near / far))
+        return np.where(buffer < 1.0, depth, 0.0).astype(np.float32)  # the far plane: nothing seen
+
+    def render_segmentation(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """What each pixel of the first-person views of the simulations given shows: (n, height, width) int32 ids
+        of the model's geoms, -1 where no geom is seen."""
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
+        try:
+            return self._layers(qpos, mocap_pos, segmentation=True)
+        finally:
+            self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 0
+            self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 0
+
+    def _layers(self, qpos: np.ndarray, mocap_pos: np.ndarray, segmentation: bool) -> np.ndarray:
+        """Draw the views and read back, per pixel, the depth buffer or (``segmentation``) the geom seen."""
+        n = len(qpos)
+        out = np.empty((n, self.height, self.width), dtype=np.int32 if segmentation else np.float32)
+        with self._current():
+            for first in range(0, n, self.views_per_pass):
+                views = np.arange(first, min(n, first + self.views_per_pass))
+                tiles = views - first
+                geoms = []  # each view's geom ids by the colour code its scene drew them in
+                for view, tile in zip(views, tiles, strict=True):
+                    self._pose(qpos[view], mocap_pos[view])
+                    mujoco.mjv_updateScene(
+                        self._model, self._data, self._eye_opt, None, self._eye, mujoco.mjtCatBit.mjCAT_ALL, self._scene
+                    )
+                    row, col = divmod(int(tile), self.cols)
+                    rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
+                    mujoco.mjr_render(rect, self._scene, self._ctx)
+                    if segmentation:
+                        geoms.append(self._geoms_by_code())
+                area = self._area(tiles)
+                if segmentation:
+                    pixels = np.empty((area.height, area.width, 3), dtype=np.uint8)
+                    mujoco.mjr_readPixels(pixels, None, area, self._ctx)
+                    rgb = self._untile(pixels, area)[tiles].astype(np.int64)
+                    codes = rgb[..., 0] | rgb[..., 1] << 8 | rgb[..., 2] << 16  # the scene's geom index + 1
+                    codes = np.minimum(codes, self._scene.maxgeom + 1)
+                    out[views] = np.stack([table[code] for table, code in zip(geoms, codes, strict=True)])
+                else:
+                    depth = np.empty((area.height, area.width), dtype=np.float32)
+                    mujoco.mjr_readPixels(None, depth, area, self._ctx)
+                    out[views] = self._untile(depth, area)[tiles]
+        return out
+
+    def _geoms_by_code(self) -> np.ndarray:
+        """For each colour code of the scene's segmentation (its geom index + 1; 0: nothing), the model geom it
+        shows, -1 for none; codes past the scene's geoms map to -1 too."""
+        table = np.full(self._scene.maxgeom + 2, -1, dtype=np.int32)
+        for geom in self._scene.geoms[: self._scene.ngeom]:
+            if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM and geom.segid >= 0:
+                table[geom.segid + 1] = geom.objid
+        return table
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Bird's-eye map of one simulation, with the camera's view cone (orange) and the base's heading (a white

@@ -12,10 +12,14 @@ from activeperc_env.config import EnvConfig
 from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS
 from activeperc_env.names import ROOM_HALF_X, ROOM_HALF_Y
 
+MAX_GEOM_ID = 255  # the segmentation space's bound on geom ids (the rooms have fewer than 32 geoms)
+
 
 def observation_space(config: EnvConfig) -> spaces.Dict:
     """``Dict(image=Box(uint8, (H, W, 3)), pan=Box(float32, (1,)))``, pan in radians, and with a range sensor
-    (``range_rays`` > 0) ``range=Box(float32, (range_rays,))`` in metres, right to left."""
+    (``range_rays`` > 0) ``range=Box(float32, (range_rays,))`` in metres, right to left; with ``depth``,
+    ``depth=Box(float32, (H, W))`` in metres, and with ``segmentation``, ``segmentation=Box(int32, (H, W))`` geom
+    ids (-1: none)."""
     limit = math.radians(config.pan_range)
     keys = {
         "image": spaces.Box(0, 255, (config.height, config.width, 3), dtype=np.uint8),
@@ -23,6 +27,10 @@ def observation_space(config: EnvConfig) -> spaces.Dict:
     }
     if config.range_rays:
         keys["range"] = spaces.Box(0.0, config.range_max, (config.range_rays,), dtype=np.float32)
+    if config.depth:
+        keys["depth"] = spaces.Box(0.0, np.inf, (config.height, config.width), dtype=np.float32)
+    if config.segmentation:
+        keys["segmentation"] = spaces.Box(-1, MAX_GEOM_ID, (config.height, config.width), dtype=np.int32)
     return spaces.Dict(keys)
 
 

@@ -142,9 +142,20 @@ class WarpRenderer:
         width, height: size of one view in pixels.
         max_views: the views one call draws at most in one pass (more take several).
         fov: horizontal field of view in degrees (for the maps' view cone).
+        depth, segmentation: whether each pass also draws the views' depth and geom ids (for
+            :meth:`render_depth` and :meth:`render_segmentation`).
     """
 
-    def __init__(self, batch: WarpBatch, width: int, height: int, max_views: int, fov: float):
+    def __init__(
+        self,
+        batch: WarpBatch,
+        width: int,
+        height: int,
+        max_views: int,
+        fov: float,
+        depth: bool = False,
+        segmentation: bool = False,
+    ):
         warp, mujoco_warp = _warp()
         self.width, self.height, self.fov, self.device = width, height, fov, batch.device
         self.views_per_pass = max_views
@@ -159,7 +170,8 @@ class WarpRenderer:
                 nworld=max_views,
                 cam_res=(width, height),
                 render_rgb=True,
-                render_depth=False,
+                render_depth=depth,
+                render_seg=segmentation,
                 cam_active=[camera == eye for camera in range(model.ncam)],
                 enabled_geom_groups=[0, 1],  # the eye does not see the robot's own geoms (group 2)
             )
@@ -182,13 +194,17 @@ class WarpRenderer:
     def _draw(self, qpos: np.ndarray, mocap_pos: np.ndarray, out: np.ndarray) -> None:
         """Up to ``views_per_pass`` views in one pass of the renderer, into ``out``."""
         warp, _ = _warp()
-        n, worlds = len(qpos), self.views_per_pass
-        rows = np.minimum(np.arange(worlds), n - 1)  # the unused worlds repeat the last view
         with warp.ScopedDevice(self.device):
-            self._data.qpos.assign(qpos[rows].astype(np.float32))
-            self._data.mocap_pos.assign(mocap_pos[rows].astype(np.float32))
-            self.draw()
-            out[...] = self.views_on_host(n)
+            self._load_and_draw(qpos, mocap_pos)
+            out[...] = self.views_on_host(len(qpos))
+
+    def _load_and_draw(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> None:
+        """Put up to ``views_per_pass`` rooms' states in the renderer's worlds (the unused ones repeat the last) and
+        draw them."""
+        rows = np.minimum(np.arange(self.views_per_pass), len(qpos) - 1)
+        self._data.qpos.assign(qpos[rows].astype(np.float32))
+        self._data.mocap_pos.assign(mocap_pos[rows].astype(np.float32))
+        self.draw()
 
     def views_on_host(self, n: int) -> np.ndarray:
         """The bytes of the first ``n`` views of the last pass, as a host array that the next pass overwrites."""
@@ -216,6 +232,36 @@ class WarpRenderer:
             inputs=[self._context.rgb_data, self._first_pixel],
             outputs=[self._rgb],
         )
+
+    def render_depth(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """Depth of the views of the rooms given: (n, height, width) float32, metres along the camera's axis to
+        what each pixel shows, 0 where nothing is seen."""
+        return self._layer(qpos, mocap_pos, "depth")
+
+    def render_segmentation(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
+        """What each pixel of the views of the rooms given shows: (n, height, width) int32 geom ids, -1 where no geom
+        is seen."""
+        return self._layer(qpos, mocap_pos, "seg")
+
+    def _layer(self, qpos: np.ndarray, mocap_pos: np.ndarray, name: str) -> np.ndarray:
+        """The renderer's ``depth`` or ``seg`` output for the rooms given, a pass of up to ``views_per_pass`` each."""
+        warp, _ = _warp()
+        data = getattr(self._context, f"{name}_data")
+        if data.shape[1] < self.width * self.height:
+            flag = {"depth": "depth", "seg": "segmentation"}[name]
+            raise ValueError(f"this renderer draws no {flag}: make it with {flag}=True")
+        first = int(getattr(self._context, f"{name}_adr").numpy()[0])
+        n, pixels = len(qpos), slice(first, first + self.width * self.height)
+        out = np.empty((n, self.height, self.width), dtype=np.float32 if name == "depth" else np.int32)
+        for start in range(0, n, self.views_per_pass):
+            stop = min(n, start + self.views_per_pass)
+            with warp.ScopedDevice(self.device):
+                self._load_and_draw(qpos[start:stop], mocap_pos[start:stop])
+                values = data.numpy()[: stop - start, pixels]
+            if name == "seg":  # (object id, object type) pairs: geoms' ids, -1 for anything else
+                values = np.where(values[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), values[..., 0], -1)
+            out[start:stop] = values.reshape(-1, self.height, self.width)
+        return out
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Bird's-eye map of one room, drawn by the OpenGL renderer (:meth:`TiledRenderer.render_map`)."""

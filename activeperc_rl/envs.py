@@ -17,6 +17,7 @@ from torchrl.envs import EnvBase
 from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
 from activeperc_env.checks import check_actions
 from activeperc_env.config import is_int
+from activeperc_env.spaces import MAX_GEOM_ID
 
 MOVER, LOOKER = "mover", "looker"
 
@@ -161,6 +162,12 @@ class ActivePerceptionEnv(EnvBase):
         if cfg.range_rays:
             self._obs_spec["range"] = Bounded(
                 0.0, cfg.range_max, (*n, cfg.range_rays), dtype=torch.float32, device=self.device
+            )
+        if cfg.depth:
+            self._obs_spec["depth"] = Unbounded((*n, cfg.height, cfg.width), dtype=torch.float32, device=self.device)
+        if cfg.segmentation:
+            self._obs_spec["segmentation"] = Bounded(
+                -1, MAX_GEOM_ID, (*n, cfg.height, cfg.width), dtype=torch.int32, device=self.device
             )
         self._outcome_spec = Composite(
             episode_success=Categorical(2, (*n, 1), dtype=torch.bool, device=self.device),

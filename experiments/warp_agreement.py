@@ -1,4 +1,5 @@
-"""How closely the MuJoCo Warp backend follows the default one: trajectories, episode ends and the goal in view.
+"""How closely the MuJoCo Warp backend follows the default one: trajectories, episode ends, the goal in view, and
+the views' depth and segmentation.
 
 python experiments/warp_agreement.py                 # 16 rooms, 300 random cycles each, rooms v1 and v2
 python experiments/warp_agreement.py --device cuda   # the warp backend on the GPU
@@ -21,14 +22,14 @@ def red(views: np.ndarray) -> np.ndarray:
 
 def compare(version: int, rooms: int, cycles: int, device: str, seed: int) -> dict:
     """Both backends through the same random cycles (rooms restarted together when either ends)."""
-    config = EnvConfig(version=version)
+    config = EnvConfig(version=version, depth=True, segmentation=True)
     ours = Simulator(config, num_envs=rooms, nthread=1)
     warp = Simulator(config, num_envs=rooms, nthread=1, backend="warp", device=device)
     for sim in (ours, warp):
         sim.reset(seeds=list(range(seed, seed + rooms)))
     rng = np.random.default_rng(seed)
     apart = intersection = union = 0
-    position, pixels = [], []
+    position, pixels, depth, same_geom = [], [], [], []
     for _ in range(cycles):
         moves, looks = rng.integers(0, 3, (2, rooms))
         for sim in (ours, warp):
@@ -38,6 +39,10 @@ def compare(version: int, rooms: int, cycles: int, device: str, seed: int) -> di
         position.append(np.abs(ours.state()[:, :2] - warp.state()[:, :2]).max(axis=1))
         views, warp_views = ours.render(), warp.render()
         pixels.append(np.abs(views.astype(int) - warp_views.astype(int)).mean())
+        layers, warp_layers = ours.observe(), warp.observe()
+        both = (layers["depth"] > 0) & (warp_layers["depth"] > 0)
+        depth.append(np.abs(layers["depth"] - warp_layers["depth"])[both])
+        same_geom.append((layers["segmentation"] == warp_layers["segmentation"]).mean())
         seen, warp_seen = red(views), red(warp_views)
         intersection += int((seen & warp_seen).sum())
         union += int((seen | warp_seen).sum())
@@ -54,6 +59,8 @@ def compare(version: int, rooms: int, cycles: int, device: str, seed: int) -> di
         "episodes ended apart": apart,
         "goal-mask IoU": f"{intersection / union:.3f}" if union else "goal never in view",
         "mean pixel difference (levels)": f"{np.mean(pixels):.2f}",
+        "depth 99 % (m)": f"{np.quantile(np.concatenate(depth), 0.99):.1e}",
+        "same geom (pixels)": f"{np.mean(same_geom):.4f}",
     }
 
 
