@@ -114,6 +114,13 @@ class TiledRenderer:
 
     def _draw(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, out: np.ndarray) -> None:
         """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer, read back once, fill ``out[views]``."""
+        self._draw_tiles(qpos, mocap_pos, views, tiles)
+        out[views] = self._read_rgb(tiles)
+
+    def _draw_tiles(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, after_each=None) -> list:
+        """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer; return what ``after_each()`` gave after
+        each view (nothing without it)."""
+        kept = []
         for view, tile in zip(views, tiles, strict=True):
             self._pose(qpos[view], mocap_pos[view])
             mujoco.mjv_updateScene(
@@ -128,10 +135,16 @@ class TiledRenderer:
             row, col = divmod(int(tile), self.cols)
             rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
             mujoco.mjr_render(rect, self._scene, self._ctx)
+            if after_each is not None:
+                kept.append(after_each())
+        return kept
+
+    def _read_rgb(self, tiles: np.ndarray) -> np.ndarray:
+        """The colours of ``tiles``, read back at once: (len(tiles), height, width, 3) uint8."""
         area = self._area(tiles)
         pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
         mujoco.mjr_readPixels(pixels, None, area, self._ctx)
-        out[views] = self._untile(pixels, area)[tiles]
+        return self._untile(pixels, area)[tiles]
 
     def _area(self, tiles: np.ndarray) -> mujoco.MjrRect:
         """The part of the buffer that holds ``tiles``: whole rows of tiles from the bottom left."""
@@ -176,26 +189,16 @@ class TiledRenderer:
             for first in range(0, n, self.views_per_pass):
                 views = np.arange(first, min(n, first + self.views_per_pass))
                 tiles = views - first
-                geoms = []  # each view's geom ids by the colour code its scene drew them in
-                for view, tile in zip(views, tiles, strict=True):
-                    self._pose(qpos[view], mocap_pos[view])
-                    mujoco.mjv_updateScene(
-                        self._model, self._data, self._eye_opt, None, self._eye, mujoco.mjtCatBit.mjCAT_ALL, self._scene
-                    )
-                    row, col = divmod(int(tile), self.cols)
-                    rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
-                    mujoco.mjr_render(rect, self._scene, self._ctx)
-                    if segmentation:
-                        geoms.append(self._geoms_by_code())
-                area = self._area(tiles)
                 if segmentation:
-                    pixels = np.empty((area.height, area.width, 3), dtype=np.uint8)
-                    mujoco.mjr_readPixels(pixels, None, area, self._ctx)
-                    rgb = self._untile(pixels, area)[tiles].astype(np.int64)
+                    # each view's geom ids by the colour code its scene drew them in
+                    geoms = self._draw_tiles(qpos, mocap_pos, views, tiles, self._geoms_by_code)
+                    rgb = self._read_rgb(tiles).astype(np.int64)
                     codes = rgb[..., 0] | rgb[..., 1] << 8 | rgb[..., 2] << 16  # the scene's geom index + 1
                     codes = np.minimum(codes, self._scene.maxgeom + 1)
                     out[views] = np.stack([table[code] for table, code in zip(geoms, codes, strict=True)])
                 else:
+                    self._draw_tiles(qpos, mocap_pos, views, tiles)
+                    area = self._area(tiles)
                     depth = np.empty((area.height, area.width), dtype=np.float32)
                     mujoco.mjr_readPixels(None, depth, area, self._ctx)
                     out[views] = self._untile(depth, area)[tiles]

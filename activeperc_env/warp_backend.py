@@ -55,17 +55,20 @@ def _warp():
 
 
 def replay(graphs: dict, key, device: str, work: Callable[[], None]) -> None:
-    """Run ``work`` (launches of Warp kernels on fixed arrays) on ``device``: on a GPU as a CUDA graph, captured at
-    its first run under ``key`` in ``graphs`` and replayed after, which saves launching every kernel from Python."""
+    """Run ``work`` (launches of Warp kernels on fixed arrays) on ``device``: on a GPU as a CUDA graph, captured
+    under ``key`` in ``graphs`` at its second run (the first loads its kernels) and replayed after, which saves
+    launching every kernel from Python."""
     warp, _ = _warp()
-    if not device.startswith("cuda"):
-        work()
-        return
-    if key not in graphs:
-        with warp.ScopedCapture() as capture:
+    with warp.ScopedDevice(device):
+        if not device.startswith("cuda") or key not in graphs:
+            graphs.setdefault(key, None)
             work()
-        graphs[key] = capture.graph
-    warp.capture_launch(graphs[key])
+            return
+        if graphs[key] is None:
+            with warp.ScopedCapture(device=device) as capture:  # records the launches without running them
+                work()
+            graphs[key] = capture.graph
+        warp.capture_launch(graphs[key])
 
 
 @functools.cache

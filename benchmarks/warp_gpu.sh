@@ -15,6 +15,7 @@ gpu=$(python -c "import torch; print(torch.cuda.get_device_name(0).split()[-1].l
 out=${OUT:-benchmarks/results/$gpu}
 log=$out/warp_gpu.log
 mkdir -p "$out"
+: > "$log"
 export MUJOCO_GL=egl PYTHONUNBUFFERED=1
 
 # one step: its command, its output and how it ended, in the log; a step past its limit (seconds) is stopped
@@ -31,7 +32,7 @@ step 60 python -c "import sys, torch, mujoco, warp, mujoco_warp; print(sys.versi
   'mujoco', mujoco.__version__, 'warp', warp.__version__, 'mujoco_warp', mujoco_warp.__version__)"
 step 240 python benchmarks/warp_profile.py --device cuda --num-envs 1024 4096 16384 --seconds 3 --warmup 2 \
   --csv "$out/warp_profile.csv"
-step 120 python -m pytest -q -p no:cacheprovider tests/test_warp.py -k cuda
+step 120 python -m pytest -q -p no:cacheprovider tests/test_warp.py tests/test_layers.py -k cuda
 step 60 python experiments/warp_agreement.py --device cuda
 step 150 python benchmarks/env_scaling.py --backend warp --device cuda --num-envs 1024 4096 16384 --seconds 3 \
   --warmup 2 --rounds 1 --no-peer --csv "$out/warp_env_scaling.csv"

@@ -88,7 +88,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--num-envs", nargs="+", type=harness.at_least(int, "num_envs", 1), default=[1024, 4096], metavar="N"
     )
-    parser.add_argument("--device", default="cuda", help="Warp's device: cuda (cuda:N) or cpu (cuda)")
+    parser.add_argument("--device", default="cuda", help="Warp's device: cuda, cuda:N or cpu (default: cuda)")
     parser.add_argument("--seconds", type=harness.at_least(float, "seconds", 0, strict=True), default=5.0)
     parser.add_argument("--warmup", type=harness.at_least(float, "warmup", 0), default=2.0)
     parser.add_argument("--repeats", type=harness.at_least(int, "repeats", 1), default=20, help="of each device part")
