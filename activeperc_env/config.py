@@ -14,6 +14,7 @@ from typing import ClassVar
 from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP, VERSIONS
 
 LOOKER_REWARDS = ("shared", "none")
+LAYERS = ("depth", "segmentation")  # the optional image layers of the observation, each an EnvConfig flag
 MAX_RANGE_RAYS = 64
 
 

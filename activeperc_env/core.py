@@ -23,7 +23,7 @@ import numpy as np
 
 from activeperc_env import names, sensors
 from activeperc_env.checks import check_actions, check_seed
-from activeperc_env.config import EnvConfig, is_int, physics_steps, saved_room
+from activeperc_env.config import LAYERS, EnvConfig, is_int, physics_steps, saved_room
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
 from activeperc_env.robot import make_base
@@ -397,30 +397,30 @@ class Simulator:
         observation = {"image": self.render(ids), "pan": self.pan(ids)}
         if self.config.range_rays:
             observation["range"] = self.ranges(ids)
-        if self.config.depth:
-            observation["depth"] = self.render_depth(ids)
-        if self.config.segmentation:
-            observation["segmentation"] = self.render_segmentation(ids)
+        layers = tuple(name for name in LAYERS if getattr(self.config, name))
+        if layers:
+            observation |= self._layers(layers, ids)
         return observation
 
     def render_depth(self, ids=None) -> np.ndarray:
         """Depth of the camera images of the rooms ``ids``: (n, height, width) float32, the distance in metres along
         the camera's axis to what each pixel shows, 0 where nothing is seen; needs ``EnvConfig(depth=True)``."""
-        return self._layer("depth", ids)
+        return self._layers(("depth",), ids)["depth"]
 
     def render_segmentation(self, ids=None) -> np.ndarray:
         """What each pixel of the camera images of the rooms ``ids`` shows: (n, height, width) int32 ids of the
         model's geoms (``mujoco.mj_id2name(sim.model, mujoco.mjtObj.mjOBJ_GEOM, id)``), -1 where none is seen; needs
         ``EnvConfig(segmentation=True)``."""
-        return self._layer("segmentation", ids)
+        return self._layers(("segmentation",), ids)["segmentation"]
 
-    def _layer(self, name: str, ids) -> np.ndarray:
-        """The renderer's ``render_depth`` or ``render_segmentation`` of the rooms ``ids``, drawn anew."""
-        if not getattr(self.config, name):
-            raise ValueError(f"render_{name}() needs EnvConfig({name}=True); this room has {name}=False")
+    def _layers(self, names: tuple[str, ...], ids) -> dict[str, np.ndarray]:
+        """The renderer's layers ``names`` of the rooms ``ids``, drawn anew."""
+        for name in names:
+            if not getattr(self.config, name):
+                raise ValueError(f"render_{name}() needs EnvConfig({name}=True); this room has {name}=False")
         ids = self._as_ids(ids)
-        self.require_started(f"render_{name}()", ids)
-        return getattr(self.renderer, f"render_{name}")(self._qpos[ids], self._mocap_pos[ids])
+        self.require_started(" and ".join(f"render_{name}()" for name in names), ids)
+        return self.renderer.render_layers(self._qpos[ids], self._mocap_pos[ids], names)
 
     def ranges(self, ids=None) -> np.ndarray:
         """The range sensor's readings (:mod:`activeperc_env.sensors`): (n, range_rays) float32 metres, right first."""

@@ -161,6 +161,11 @@ class TiledRenderer:
         grid = pixels.reshape(rows, self.height, cols, self.width, *rest)[:, ::-1]
         return grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)
 
+    def render_layers(self, qpos: np.ndarray, mocap_pos: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The layers ``names`` (``"depth"``: :meth:`render_depth`, ``"segmentation"``: :meth:`render_segmentation`)
+        of the views of the simulations given, a pass each."""
+        return {name: getattr(self, f"render_{name}")(qpos, mocap_pos) for name in names}
+
     def render_depth(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
         """Depth of the first-person views of the simulations given: (n, height, width) float32, the distance in
         metres along the camera's axis to what each pixel shows, 0 where nothing is seen."""

@@ -20,6 +20,8 @@ import numpy as np
 from activeperc_env import names
 
 BACKENDS = ("mujoco", "warp")
+LAYER_OUTPUTS = {"depth": "depth", "segmentation": "seg"}  # a layer's name: the render context's name of it
+LAYER_DTYPES = {"depth": np.float32, "segmentation": np.int32}
 STEPPED = ("qpos", "qvel", "ctrl", "qacc_warmstart", "mocap_pos", "mocap_quat")
 """The fields of a room's state that a step reads and writes, copied to the device and back around it."""
 
@@ -146,7 +148,7 @@ class WarpRenderer:
         max_views: the views one call draws at most in one pass (more take several).
         fov: horizontal field of view in degrees (for the maps' view cone).
         depth, segmentation: whether each pass also draws the views' depth and geom ids (for
-            :meth:`render_depth` and :meth:`render_segmentation`).
+            :meth:`render_layers`).
     """
 
     def __init__(
@@ -236,34 +238,30 @@ class WarpRenderer:
             outputs=[self._rgb],
         )
 
-    def render_depth(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
-        """Depth of the views of the rooms given: (n, height, width) float32, metres along the camera's axis to
-        what each pixel shows, 0 where nothing is seen."""
-        return self._layer(qpos, mocap_pos, "depth")
-
-    def render_segmentation(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:
-        """What each pixel of the views of the rooms given shows: (n, height, width) int32 geom ids, -1 where no geom
-        is seen."""
-        return self._layer(qpos, mocap_pos, "seg")
-
-    def _layer(self, qpos: np.ndarray, mocap_pos: np.ndarray, name: str) -> np.ndarray:
-        """The renderer's ``depth`` or ``seg`` output for the rooms given, a pass of up to ``views_per_pass`` each."""
+    def render_layers(self, qpos: np.ndarray, mocap_pos: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The layers ``names`` (``"depth"``, ``"segmentation"``) of the views of the rooms given, from the same passes:
+        depth (n, height, width) float32, metres along the camera's axis, 0 where nothing is seen; segmentation
+        (n, height, width) int32 geom ids, -1 where no geom is seen."""
         warp, _ = _warp()
-        data = getattr(self._context, f"{name}_data")
-        if data.shape[1] < self.width * self.height:
-            flag = {"depth": "depth", "seg": "segmentation"}[name]
-            raise ValueError(f"this renderer draws no {flag}: make it with {flag}=True")
-        first = int(getattr(self._context, f"{name}_adr").numpy()[0])
-        n, pixels = len(qpos), slice(first, first + self.width * self.height)
-        out = np.empty((n, self.height, self.width), dtype=np.float32 if name == "depth" else np.int32)
+        pixels = self.width * self.height
+        outputs = {}  # name: the render context's rows of it, and its pixels in them
+        for name in names:
+            data = getattr(self._context, f"{LAYER_OUTPUTS[name]}_data")
+            if data.shape[1] < pixels:
+                raise ValueError(f"this renderer draws no {name}: make it with {name}=True")
+            first = int(getattr(self._context, f"{LAYER_OUTPUTS[name]}_adr").numpy()[0])
+            outputs[name] = data, slice(first, first + pixels)
+        n = len(qpos)
+        out = {name: np.empty((n, self.height, self.width), dtype=LAYER_DTYPES[name]) for name in names}
         for start in range(0, n, self.views_per_pass):
             stop = min(n, start + self.views_per_pass)
             with warp.ScopedDevice(self.device):
                 self._load_and_draw(qpos[start:stop], mocap_pos[start:stop])
-                values = data.numpy()[: stop - start, pixels]
-            if name == "seg":  # (object id, object type) pairs: geoms' ids, -1 for anything else
-                values = np.where(values[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), values[..., 0], -1)
-            out[start:stop] = values.reshape(-1, self.height, self.width)
+                for name, (data, columns) in outputs.items():
+                    values = data[: stop - start].numpy()[:, columns]
+                    if name == "segmentation":  # (object id, object type) pairs: geoms' ids, -1 for anything else
+                        values = np.where(values[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), values[..., 0], -1)
+                    out[name][start:stop] = values.reshape(-1, self.height, self.width)
         return out
 
     def render_map(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> np.ndarray:

@@ -87,8 +87,8 @@ def test_layers_drawn_in_several_passes_are_those_of_one(backend, device):
         from activeperc_env.render import TiledRenderer
 
         small = TiledRenderer(sim.model, config.width, config.height, 2, config.fov)
-    qpos, mocap_pos = sim._qpos, sim._mocap_pos
-    depth, segmentation = small.render_depth(qpos, mocap_pos), small.render_segmentation(qpos, mocap_pos)
+    layers = small.render_layers(sim._qpos, sim._mocap_pos, ("depth", "segmentation"))
+    depth, segmentation = layers["depth"], layers["segmentation"]
     small.close()
     assert small.views_per_pass == 2
     np.testing.assert_allclose(depth, one_pass[0], atol=1e-4)  # OpenGL rounds a little differently in another tile
