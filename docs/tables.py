@@ -199,7 +199,7 @@ def v3_looks(folder: str) -> str:
     held forward (``experiments/pan_vs_bearing.py``)."""
     rows = [
         [
-            f"{Path(r['run']).name}, {r['looker']}",
+            f"{Path(r['run']).parent.name}/{Path(r['run']).name}, {r['looker']}",
             r["success"],
             r["pan_rate"],
             r["goal_in_view"],
