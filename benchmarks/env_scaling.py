@@ -84,15 +84,8 @@ def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[
     cycle in each method of :data:`harness.SIMULATOR_PARTS`; and ``cycles_per_s``, summed over the rooms, for
     comparison with the TorchRL env at the same N."""
     sim, rng = harness.random_core(num_envs, seed)
-    stopwatch = harness.Stopwatch()
-
-    def cycle() -> int:
-        harness.core_cycle(sim, rng)
-        return 1
-
     try:
-        with stopwatch.watching(sim, harness.SIMULATOR_PARTS):
-            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
+        rate, per_cycle = harness.timed_core(sim, rng, seconds, warmup)
     finally:
         sim.close()
     return per_cycle | {"cycles_per_s": rate * num_envs}

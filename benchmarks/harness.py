@@ -280,3 +280,16 @@ def core_cycle(sim, rng) -> None:
     if done.size:
         sim.reset(done)
         sim.render(done)
+
+
+def timed_core(sim, rng, seconds: float, warmup: float) -> tuple[float, dict[str, float]]:
+    """Time :func:`core_cycle` on ``sim`` as :func:`timed_parts` does: whole cycles per second (not summed over the
+    rooms) and the seconds per cycle spent in each method of :data:`SIMULATOR_PARTS`."""
+    stopwatch = Stopwatch()
+
+    def cycle() -> int:
+        core_cycle(sim, rng)
+        return 1
+
+    with stopwatch.watching(sim, SIMULATOR_PARTS):
+        return timed_parts(cycle, seconds, warmup, stopwatch)

@@ -57,15 +57,8 @@ def profile(num_envs: int, device: str, seconds: float, warmup: float, seed: int
     """:func:`harness.core_cycle`'s rate and split with ``num_envs`` rooms on ``device``, and the device's parts."""
     before = free_mib(device)
     sim, rng = harness.random_core(num_envs, seed, backend="warp", device=device)
-    stopwatch = harness.Stopwatch()
-
-    def cycle() -> int:
-        harness.core_cycle(sim, rng)
-        return 1
-
     try:
-        with stopwatch.watching(sim, harness.SIMULATOR_PARTS):
-            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
+        rate, per_cycle = harness.timed_core(sim, rng, seconds, warmup)
         after = free_mib(device)
         batch, renderer = sim._batch, sim.renderer
         row = {
