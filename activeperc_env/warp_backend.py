@@ -181,8 +181,8 @@ class WarpRenderer:
                 enabled_geom_groups=[0, 1],  # the eye does not see the robot's own geoms (group 2)
             )
             self._rgb = warp.zeros((max_views, height, width, 3), dtype=warp.uint8)
-        # the views' bytes on the host: a page-locked copy of a GPU's (a fresh pageable one for each call was 30x
-        # slower at 16k rooms), the very array on Warp's CPU device
+        # the views' bytes on the host: one page-locked buffer that a GPU's pass is copied into, reused by every pass;
+        # on Warp's CPU device the very array
         self._host_rgb = warp.empty_like(self._rgb, device="cpu", pinned=True) if batch.device != "cpu" else self._rgb
         self._first_pixel = int(self._context.rgb_adr.numpy()[0])  # the eye's pixels in the renderer's rows
         self._graphs = {}  # the CUDA graph of a pass (on a GPU)
