@@ -185,6 +185,12 @@ class WarpRenderer:
         # on Warp's CPU device the very array
         self._host_rgb = warp.empty_like(self._rgb, device="cpu", pinned=True) if batch.device != "cpu" else self._rgb
         self._first_pixel = int(self._context.rgb_adr.numpy()[0])  # the eye's pixels in the renderer's rows
+        drawn = {"depth": depth, "segmentation": segmentation}
+        self._layer_rows = {}  # each layer drawn: the render context's rows of it, and the eye's pixels in them
+        for name in (name for name, wanted in drawn.items() if wanted):
+            first = int(getattr(self._context, f"{LAYER_OUTPUTS[name]}_adr").numpy()[0])
+            rows = getattr(self._context, f"{LAYER_OUTPUTS[name]}_data")
+            self._layer_rows[name] = rows, slice(first, first + width * height)
         self._graphs = {}  # the CUDA graph of a pass (on a GPU)
 
     def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, tiles: np.ndarray | None = None) -> np.ndarray:
@@ -243,14 +249,10 @@ class WarpRenderer:
         depth (n, height, width) float32, metres along the camera's axis, 0 where nothing is seen; segmentation
         (n, height, width) int32 geom ids, -1 where no geom is seen."""
         warp, _ = _warp()
-        pixels = self.width * self.height
-        outputs = {}  # name: the render context's rows of it, and its pixels in them
         for name in names:
-            data = getattr(self._context, f"{LAYER_OUTPUTS[name]}_data")
-            if data.shape[1] < pixels:
+            if name not in self._layer_rows:
                 raise ValueError(f"this renderer draws no {name}: make it with {name}=True")
-            first = int(getattr(self._context, f"{LAYER_OUTPUTS[name]}_adr").numpy()[0])
-            outputs[name] = data, slice(first, first + pixels)
+        outputs = {name: self._layer_rows[name] for name in names}
         n = len(qpos)
         out = {name: np.empty((n, self.height, self.width), dtype=LAYER_DTYPES[name]) for name in names}
         for start in range(0, n, self.views_per_pass):
