@@ -390,11 +390,23 @@ class Simulator:
         out[...] = self._views[ids]
         return out
 
-    def observe(self, ids=None) -> dict[str, np.ndarray]:
-        """The rooms' observations as every API gives them: ``image`` (:meth:`render`), ``pan`` (:meth:`pan`) and,
-        with a range sensor (``range_rays`` > 0), ``range`` (:meth:`ranges`); with ``depth`` and ``segmentation``
-        set in the config, ``depth`` (:meth:`render_depth`) and ``segmentation`` (:meth:`render_segmentation`)."""
-        observation = {"image": self.render(ids), "pan": self.pan(ids)}
+    def device_views(self, ids=None):
+        """First-person camera images of the rooms ``ids`` (distinct and increasing; all when ``None``) drawn anew
+        where the warp backend runs and left there: an (n, height, width, 3) uint8 Warp array, which
+        ``torch.from_dlpack`` reads in place, valid until the next render (copy what you keep). The same pixels as
+        :meth:`render`; the default backend draws on the host and has none (``ValueError``)."""
+        if self.backend != "warp":
+            raise ValueError(f"device_views() needs backend='warp'; backend={self.backend!r} draws with render()")
+        ids = self._as_ids(ids, changed=True)
+        self.require_started("device_views()", ids)
+        return self.renderer.device_views(self._qpos[ids], self._mocap_pos[ids])
+
+    def observe(self, ids=None, device_images: bool = False) -> dict:
+        """The rooms' observations as every API gives them: ``image`` (:meth:`render`; with ``device_images``,
+        :meth:`device_views`), ``pan`` (:meth:`pan`) and, with a range sensor (``range_rays`` > 0), ``range``
+        (:meth:`ranges`); with ``depth`` and ``segmentation`` set in the config, ``depth`` (:meth:`render_depth`)
+        and ``segmentation`` (:meth:`render_segmentation`)."""
+        observation = {"image": self.device_views(ids) if device_images else self.render(ids), "pan": self.pan(ids)}
         if self.config.range_rays:
             observation["range"] = self.ranges(ids)
         layers = tuple(name for name in LAYERS if getattr(self.config, name))

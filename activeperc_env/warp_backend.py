@@ -192,6 +192,7 @@ class WarpRenderer:
             rows = getattr(self._context, f"{LAYER_OUTPUTS[name]}_data")
             self._layer_rows[name] = rows, slice(first, first + width * height)
         self._graphs = {}  # the CUDA graph of a pass (on a GPU)
+        self._lent = False  # whether device_views lent the views of the last pass
 
     def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, tiles: np.ndarray | None = None) -> np.ndarray:
         """First-person views of the rooms whose states are given: (n, height, width, 3) uint8 (``tiles`` is
@@ -209,9 +210,25 @@ class WarpRenderer:
             self._load_and_draw(qpos, mocap_pos)
             out[...] = self.views_on_host(len(qpos))
 
+    def device_views(self, qpos: np.ndarray, mocap_pos: np.ndarray):
+        """First-person views of up to ``views_per_pass`` rooms whose states are given, left on the device: an (n,
+        height, width, 3) uint8 Warp array of the renderer's own buffer, which the next pass overwrites (it first
+        waits for the device to finish what was asked of these views: a copy ``torch.from_dlpack`` read, say)."""
+        warp, _ = _warp()
+        if len(qpos) > self.views_per_pass:
+            raise ValueError(f"{len(qpos)} views are more than one pass draws ({self.views_per_pass})")
+        with warp.ScopedDevice(self.device):
+            self._load_and_draw(qpos, mocap_pos)
+        self._lent = True
+        return self._rgb[: len(qpos)]
+
     def _load_and_draw(self, qpos: np.ndarray, mocap_pos: np.ndarray) -> None:
         """Put up to ``views_per_pass`` rooms' states in the renderer's worlds (the unused ones repeat the last) and
         draw them."""
+        warp, _ = _warp()
+        if self._lent:  # work on any stream may still read the views device_views lent
+            warp.synchronize_device(self.device)
+            self._lent = False
         rows = np.minimum(np.arange(self.views_per_pass), len(qpos) - 1)
         self._data.qpos.assign(qpos[rows].astype(np.float32))
         self._data.mocap_pos.assign(mocap_pos[rows].astype(np.float32))

@@ -134,14 +134,16 @@ class ActivePerceptionEnv(EnvBase):
         on_gpu = self.device is not None and self.device.type == "cuda"
         warp_device = str(self.device) if backend == "warp" and on_gpu else "cpu"
         self.sim = Simulator(config, num_envs=num_envs, nthread=nthread, backend=backend, device=warp_device)
+        self._device_images = backend == "warp"  # the views are drawn where the env's tensors live: read them there
         self.episode_seeds = np.zeros(num_envs, dtype=np.int64)
         # how each room's latest step ended it: a room left out of a partial step reports these again
         self._terminated = np.zeros(num_envs, dtype=bool)
         self._truncated = np.zeros(num_envs, dtype=bool)
         self._seed_rngs = [np.random.default_rng() for _ in range(num_envs)]
         past = self.frame_stack - 1  # each room's views of the cycles before, oldest first
-        self._past_images = np.zeros((num_envs, config.height, config.width, 3 * past), dtype=np.uint8)
-        self._past_pans = np.zeros((num_envs, past), dtype=np.float32)
+        self._past_images = torch.zeros((num_envs, config.height, config.width, 3 * past), dtype=torch.uint8)
+        self._past_images = self._past_images.to(self.device)
+        self._past_pans = torch.zeros((num_envs, past), dtype=torch.float32, device=self.device)
         self._looker = None
         self._looker_spec = Composite(shape=self.batch_size, device=self.device)
         self._make_specs()
@@ -272,19 +274,19 @@ class ActivePerceptionEnv(EnvBase):
             ids = np.arange(self.num_envs)
         else:
             ids = mask.reshape(self.num_envs).nonzero().squeeze(-1).cpu().numpy()
-        observation = self._obs_spec.zero().cpu()
+        observation = self._obs_spec.zero()
         if len(ids):
             parity = SPLITS.index(self.split)
             seeds = np.array([2 * self._seed_rngs[i].integers(2**62) + parity for i in ids], dtype=np.int64)
             self.sim.reset(ids, seeds)
             self.episode_seeds[ids] = seeds
             self._terminated[ids] = self._truncated[ids] = False
-            start = self.sim.observe(ids)
-            self._past_images[ids] = np.tile(start["image"], self.frame_stack - 1)
-            self._past_pans[ids] = np.tile(start["pan"], self.frame_stack - 1)
-            index = torch.from_numpy(ids)
-            for key, value in self._stacked(start, ids).items():
-                observation[key][index] = torch.from_numpy(value)
+            start = self._current(ids)
+            index = torch.from_numpy(ids).to(self._past_pans.device)
+            self._past_images[index] = start["image"].repeat(1, 1, 1, self.frame_stack - 1)
+            self._past_pans[index] = start["pan"].repeat(1, self.frame_stack - 1)
+            for key, value in self._stacked(start, index).items():
+                observation[key][index] = value
         return self._reset_output(observation)
 
     def _reset_output(self, observation: TensorDictBase) -> TensorDict:
@@ -316,12 +318,12 @@ class ActivePerceptionEnv(EnvBase):
             record = (record if written is None else written).get(LOOKER)
             if self.look_views:
                 views, pans = self._stacked_look_views()
-                record.set("look_views", {"image": torch.from_numpy(views), "pan": torch.from_numpy(pans)})
+                record.set("look_views", {"image": views, "pan": pans})
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
-        observation = self._stacked(self.sim.observe(), np.arange(n))
+        observation = self._observe()
         self._remember(observation, ids)
-        out.set((MOVER, "observation"), self._on_device(observation))
+        out.set((MOVER, "observation"), observation)
         out.update({MOVER: self._outcomes()})
         for agent, reward in ((MOVER, result.reward), (LOOKER, result.looker_reward)):
             rewards = np.zeros(n, dtype=np.float32)
@@ -356,8 +358,8 @@ class ActivePerceptionEnv(EnvBase):
             "seed_rngs": [rng.bit_generator.state for rng in self._seed_rngs],
             "terminated": self._terminated.copy(),
             "truncated": self._truncated.copy(),
-            "past_images": self._past_images.copy(),
-            "past_pans": self._past_pans.copy(),
+            "past_images": self._past_images.to("cpu", copy=True).numpy(),
+            "past_pans": self._past_pans.to("cpu", copy=True).numpy(),
         }
 
     def load_rooms_state(self, state: dict) -> None:
@@ -373,10 +375,10 @@ class ActivePerceptionEnv(EnvBase):
         self._truncated[:] = state["truncated"]
         if self.frame_stack > 1:  # states saved before frame stacks existed hold none (their envs stacked none)
             for key in ("past_images", "past_pans"):
-                if np.shape(state[key]) != np.shape(getattr(self, f"_{key}")):
+                past = getattr(self, f"_{key}")
+                if np.shape(state[key]) != tuple(past.shape):
                     raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit this env's frame stack")
-            self._past_images[:] = state["past_images"]
-            self._past_pans[:] = state["past_pans"]
+                past[:] = torch.as_tensor(np.asarray(state[key])).to(past.device)
 
     def random_state(self) -> torch.Tensor:
         """The torch random state of the process this env steps in: in a collector's worker, the stream its policy
@@ -407,35 +409,42 @@ class ActivePerceptionEnv(EnvBase):
     def _observe(self) -> TensorDict:
         """The current observation of every room (:meth:`~activeperc_env.Simulator.observe`), after the room's past
         views when it stacks frames, on ``device``."""
-        return self._on_device(self._stacked(self.sim.observe(), np.arange(self.num_envs)))
+        observation = self._stacked(self._current(), slice(None))
+        return TensorDict(observation, batch_size=self.batch_size, device=self.device)
 
-    def _on_device(self, observation: dict[str, np.ndarray]) -> TensorDict:
-        """Every room's ``observation`` arrays as a tensordict on ``device``."""
-        tensors = {key: torch.from_numpy(value) for key, value in observation.items()}
-        return TensorDict(tensors, batch_size=self.batch_size, device=self.device)
+    def _current(self, ids: np.ndarray | None = None) -> dict[str, torch.Tensor]:
+        """The simulator's observation of the rooms ``ids`` (all when ``None``) as tensors on ``device``: the warp
+        backend's views copied where they were drawn, the rest from the host."""
+        observation = self.sim.observe(ids, device_images=self._device_images)
+        return {
+            key: torch.from_numpy(value).to(self.device) if isinstance(value, np.ndarray) else _copied(value)
+            for key, value in observation.items()
+        }
 
-    def _stacked(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, np.ndarray]:
-        """The rooms ``ids``' ``observation`` with their past views before its image and pan."""
+    def _stacked(self, observation: dict[str, torch.Tensor], index) -> dict[str, torch.Tensor]:
+        """The ``observation`` of the rooms at ``index`` (a slice or a tensor of rooms) with their past views before
+        its image and pan."""
         if self.frame_stack == 1:
             return observation
-        past = {"image": self._past_images[ids], "pan": self._past_pans[ids]}
+        past = {"image": self._past_images[index], "pan": self._past_pans[index]}
         return observation | {key: _after(value, observation[key]) for key, value in past.items()}
 
-    def _stacked_look_views(self) -> tuple[np.ndarray, np.ndarray]:
-        """The simulator's :meth:`~activeperc_env.Simulator.look_views` of every room, each after the room's past
-        views: images ``(n, 3, H, W, 3 * frame_stack)`` and pans ``(n, 3, frame_stack)``."""
-        views, pans = self.sim.look_views()
+    def _stacked_look_views(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The simulator's :meth:`~activeperc_env.Simulator.look_views` of every room on ``device``, each after the
+        room's past views: images ``(n, 3, H, W, 3 * frame_stack)`` and pans ``(n, 3, frame_stack)``."""
+        views, pans = (torch.from_numpy(value).to(self.device) for value in self.sim.look_views())
         if self.frame_stack == 1:
             return views, pans
         return _after(self._past_images[:, None], views), _after(self._past_pans[:, None], pans)
 
-    def _remember(self, observation: dict[str, np.ndarray], ids: np.ndarray) -> None:
+    def _remember(self, observation: TensorDict, ids: np.ndarray) -> None:
         """Keep the latest views of the rooms ``ids`` (every room's stacked ``observation`` at a cycle's end) as their
         past views."""
         if self.frame_stack == 1 or not len(ids):
             return
-        self._past_images[ids] = observation["image"][ids, ..., 3:]
-        self._past_pans[ids] = observation["pan"][ids, 1:]
+        index = torch.from_numpy(ids).to(self._past_pans.device)
+        self._past_images[index] = observation["image"][index, ..., 3:]
+        self._past_pans[index] = observation["pan"][index, 1:]
 
 
 # TorchRL's metaclass shows the constructor as (*args, **kwargs) to help() and IDEs: give them its real arguments
@@ -451,9 +460,14 @@ def _check_looker_action(action: torch.Tensor, n: int) -> None:
         )
 
 
-def _after(past: np.ndarray, current: np.ndarray) -> np.ndarray:
+def _after(past: torch.Tensor, current: torch.Tensor) -> torch.Tensor:
     """``past`` (repeated over ``current``'s axes where it has length 1) before ``current`` on the last axis."""
-    return np.concatenate([np.broadcast_to(past, current.shape[:-1] + past.shape[-1:]), current], axis=-1)
+    return torch.cat([past.expand(*current.shape[:-1], past.shape[-1]), current], dim=-1)
+
+
+def _copied(views) -> torch.Tensor:
+    """A tensor copy of views that lie on the warp backend's device (any DLPack array), made where they lie."""
+    return torch.from_dlpack(views).clone()
 
 
 def latest_view(image):

@@ -30,32 +30,6 @@ MEMORY_SAMPLES = 100  # about this many RSS samples over a memory run
 CSV_COLUMNS = ("num_envs", "cycles_per_s", "miniworld_steps_per_s", "ratio")
 
 
-class RandomRooms:
-    """A looker-mode ``make_env(num_envs)`` stepped with random actions the way training's collectors step it."""
-
-    def __init__(self, num_envs: int, seed: int, backend: str = "mujoco", device: str = "cpu"):
-        import torch
-
-        from activeperc_rl import make_env
-        from activeperc_rl.models import RandomPolicy
-
-        torch.manual_seed(seed)
-        self.env = make_env(
-            num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed, backend=backend, device=device
-        )
-        self.mover = RandomPolicy(("mover",))
-        self.state = self.env.reset()
-
-    def cycle(self) -> int:
-        """Run one cycle in every room, restarting the finished ones; return how many episodes ended."""
-        stepped, self.state = self.env.step_and_maybe_reset(self.mover(self.state))
-        return int(stepped.get(("next", "done")).sum())
-
-    def close(self) -> None:
-        """Release the env's simulator."""
-        self.env.close()
-
-
 def rss_mib() -> float:
     """The resident memory of this process in MiB, read from ``/proc/self/statm`` (Linux)."""
     with open("/proc/self/statm") as statm:
@@ -66,8 +40,8 @@ def rss_mib() -> float:
 def bench_rooms(
     num_envs: int, seconds: float, warmup: float, seed: int, backend: str = "mujoco", device: str = "cpu"
 ) -> float:
-    """Cycles/s of :class:`RandomRooms` with ``num_envs`` rooms, summed over the rooms."""
-    rooms = RandomRooms(num_envs, seed, backend, device)
+    """Cycles/s of :class:`harness.RandomRooms` with ``num_envs`` rooms, summed over the rooms."""
+    rooms = harness.RandomRooms(num_envs, seed, backend, device)
 
     def step() -> int:
         rooms.cycle()
@@ -92,14 +66,14 @@ def core_split(num_envs: int, seconds: float, warmup: float, seed: int) -> dict[
 
 
 def measure_memory(episodes: int, num_envs: int, warmup: float, seed: int) -> dict:
-    """Step :class:`RandomRooms` for ``warmup`` seconds, then until ``episodes`` episodes ended; sample the RSS.
+    """Step :class:`harness.RandomRooms` for ``warmup`` seconds, then until ``episodes`` episodes ended; sample the RSS.
 
     Returns ``samples`` (``(episodes ended, RSS MiB)`` pairs, the first after the warm-up, the last at the end),
     ``start_mib``, ``end_mib``, ``max_mib``, ``growth_mib`` (end - start), ``max_growth_mib`` (max - start),
     ``flat`` (``max_growth_mib`` below ``tolerance``, :data:`FLAT_TOLERANCE`, of the start), ``episodes`` (ended,
     at least the number asked for), ``num_envs`` and ``cycles`` (after the warm-up).
     """
-    rooms = RandomRooms(num_envs, seed)
+    rooms = harness.RandomRooms(num_envs, seed)
     try:
         deadline = time.perf_counter() + warmup
         while time.perf_counter() < deadline:  # the warm-up: its episodes are not counted

@@ -267,6 +267,32 @@ def random_core(num_envs: int, seed: int, version: int = 1, backend: str = "mujo
     return sim, np.random.default_rng(seed)
 
 
+class RandomRooms:
+    """A looker-mode ``make_env(num_envs)`` stepped with random actions the way training's collectors step it."""
+
+    def __init__(self, num_envs: int, seed: int, backend: str = "mujoco", device: str = "cpu"):
+        import torch
+
+        from activeperc_rl import make_env
+        from activeperc_rl.models import RandomPolicy
+
+        torch.manual_seed(seed)
+        self.env = make_env(
+            num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed, backend=backend, device=device
+        )
+        self.mover = RandomPolicy(("mover",))
+        self.state = self.env.reset()
+
+    def cycle(self) -> int:
+        """Run one cycle in every room, restarting the finished ones; return how many episodes ended."""
+        stepped, self.state = self.env.step_and_maybe_reset(self.mover(self.state))
+        return int(stepped.get(("next", "done")).sum())
+
+    def close(self) -> None:
+        """Release the env's simulator."""
+        self.env.close()
+
+
 def core_cycle(sim, rng) -> None:
     """One random-action cycle of every room of ``sim``: move, render, look, render (the second render draws only
     the rooms whose camera turned), then reset and render the finished rooms."""

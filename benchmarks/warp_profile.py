@@ -4,7 +4,9 @@ random actions split by its methods, and the device's own share of it.
 For each N: cycles/s of :func:`harness.core_cycle` (move, render, look, render, resets) summed over the rooms, and
 milliseconds per cycle in each ``Simulator`` method; then, each replayed alone and synchronised, a control period of
 physics for all rooms on the device (``WarpBatch.advance``), a pass of the renderer over all views
-(``WarpRenderer.draw``) and the copy of the views' bytes to the host; and the device memory the N rooms took.
+(``WarpRenderer.draw``) and the copy of the views' bytes to the host; the device memory the N rooms took; and the
+TorchRL env (``make_env(backend="warp")`` under random actions, as ``env_scaling.py`` steps it) split by the
+simulator's methods that its step calls, the rest being the env's own (TorchRL, the looker, tensors).
 
 Run it from the repository root (needs the ``warp`` extra)::
 
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import harness
 
+ENV_PARTS = ("move", "look", "reset", "observe")  # the Simulator methods a TorchRL env step calls
 CSV_COLUMNS = (
     "num_envs",
     "cycles_per_s",
@@ -29,6 +32,8 @@ CSV_COLUMNS = (
     "device_render_ms",
     "views_to_host_ms",
     "device_mib_per_room",
+    "env_cycles_per_s",
+    *(f"env_{part}_ms" for part in (*ENV_PARTS, "rest")),
 )
 
 
@@ -72,7 +77,27 @@ def profile(num_envs: int, device: str, seconds: float, warmup: float, seed: int
         }
     finally:
         sim.close()
-    return row
+    return row | env_profile(num_envs, device, seconds, warmup, seed)
+
+
+def env_profile(num_envs: int, device: str, seconds: float, warmup: float, seed: int) -> dict:
+    """Cycles/s of the TorchRL env with ``num_envs`` rooms on ``device``, summed over the rooms, and milliseconds per
+    cycle in each of its simulator's methods of :data:`ENV_PARTS` and in the rest of its step."""
+    rooms = harness.RandomRooms(num_envs, seed, backend="warp", device=device)
+    stopwatch = harness.Stopwatch()
+
+    def cycle() -> int:
+        rooms.cycle()
+        return 1
+
+    try:
+        with stopwatch.watching(rooms.env.sim, ENV_PARTS):
+            rate, per_cycle = harness.timed_parts(cycle, seconds, warmup, stopwatch)
+    finally:
+        rooms.close()
+    parts = {f"env_{part}_ms": 1e3 * per_cycle[part] for part in ENV_PARTS}
+    rest = 1e3 / rate - sum(parts.values())
+    return {"env_cycles_per_s": rate * num_envs, **parts, "env_rest_ms": rest}
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

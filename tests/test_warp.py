@@ -133,6 +133,40 @@ def test_the_torchrl_env_on_warp_gives_the_default_envs_rollout():
     assert (images[0] - images[1]).abs().mean() < 2.0  # levels of 255: the two renderers shade alike
 
 
+@pytest.mark.parametrize("device", DEVICES)
+def test_views_left_on_the_device_are_the_rendered_views(device):
+    import torch
+
+    _, warp = pair(device=device)
+    warp.move([2] * ROOMS)
+    warp.look([0, 1, 2] * (ROOMS // 3))
+    lent = torch.from_dlpack(warp.device_views([1, 3, 4])).cpu().numpy().copy()
+    assert lent.shape == (3, warp.config.height, warp.config.width, 3)
+    assert np.array_equal(lent, warp.render([1, 3, 4]))
+    with pytest.raises(ValueError, match="device_views\\(\\) needs backend='warp'"):
+        Simulator(num_envs=1).device_views()
+
+
+@pytest.mark.parametrize("frame_stack", [1, 2])
+def test_the_torchrl_env_reads_warp_views_on_the_device_as_it_reads_them_on_the_host(frame_stack):
+    import torch
+
+    from activeperc_rl.envs import make_env
+    from activeperc_rl.models import RandomPolicy
+
+    rollouts = []
+    for device_images in (True, False):
+        looker = RandomPolicy(("looker",))
+        env = make_env(3, seed=5, backend="warp", max_cycles=6, frame_stack=frame_stack, looker=looker, look_views=True)
+        env._device_images = device_images  # False: the views come through the host, as on the default backend
+        torch.manual_seed(0)
+        rollouts.append(env.rollout(9, RandomPolicy(("mover",)), break_when_any_done=False))
+        env.close()
+    assert (rollouts[0] == rollouts[1]).all()
+    images = rollouts[0]["next", "mover", "observation", "image"]
+    assert not torch.equal(images[:, 0], images[:, -1])  # each cycle kept its own views, not the last pass's
+
+
 def test_activeperc_train_runs_on_warp(tmp_path, capsys):
     from activeperc_rl import cli
 
