@@ -23,7 +23,9 @@ BACKENDS = ("mujoco", "warp")
 LAYER_OUTPUTS = {"depth": "depth", "segmentation": "seg"}  # a layer's name: the render context's name of it
 LAYER_DTYPES = {"depth": np.float32, "segmentation": np.int32}
 STEPPED = ("qpos", "qvel", "ctrl", "qacc_warmstart", "mocap_pos", "mocap_quat")
-"""The fields of a room's state that a step reads and writes, copied to the device and back around it."""
+"""The fields of a room's state that a step reads, copied to the device before it."""
+ADVANCED = ("qpos", "qvel", "qacc_warmstart")
+"""The fields of :data:`STEPPED` that a step changes, copied back after it (the simulator alone sets the others)."""
 
 
 def check_backend(backend: str, device: str) -> None:
@@ -102,7 +104,8 @@ def warp_model(model: mujoco.MjModel):
 class WarpBatch(mujoco.batch.Batch):
     """A :class:`mujoco.batch.Batch` whose :meth:`step` runs on a Warp device: the rooms' state lives in the batch's
     rows as on the default backend (resets, copies and checkpoints work alike), a step copies the stepped fields
-    (:data:`STEPPED`) to one ``mujoco_warp`` data of all rooms, steps every room and keeps the rooms ``ids``."""
+    (:data:`STEPPED`) to one ``mujoco_warp`` data of all rooms, steps every room and keeps the changed fields
+    (:data:`ADVANCED`) of the rooms ``ids``."""
 
     def __init__(self, model: mujoco.MjModel, nsim: int, nthread: int = 0, device: str = "cpu"):
         warp, mujoco_warp = _warp()
@@ -124,7 +127,7 @@ class WarpBatch(mujoco.batch.Batch):
             for name in STEPPED:
                 getattr(self._warp_data, name).assign(self._host_rows[name].astype(np.float32))
             self.advance(nstep)
-            for name in STEPPED:
+            for name in ADVANCED:
                 self._host_rows[name][ids] = getattr(self._warp_data, name).numpy()[ids]
         self._host_rows["time"][ids] += nstep * self.model.opt.timestep
 
