@@ -232,9 +232,11 @@ class WarpRenderer:
         if self._lent:  # work on any stream may still read the views device_views lent
             warp.synchronize_device(self.device)
             self._lent = False
-        rows = np.minimum(np.arange(self.views_per_pass), len(qpos) - 1)
-        self._data.qpos.assign(qpos[rows].astype(np.float32))
-        self._data.mocap_pos.assign(mocap_pos[rows].astype(np.float32))
+        if len(qpos) < self.views_per_pass:
+            rows = np.minimum(np.arange(self.views_per_pass), len(qpos) - 1)
+            qpos, mocap_pos = qpos[rows], mocap_pos[rows]
+        self._data.qpos.assign(qpos.astype(np.float32))
+        self._data.mocap_pos.assign(mocap_pos.astype(np.float32))
         self.draw()
 
     def views_on_host(self, n: int) -> np.ndarray:
