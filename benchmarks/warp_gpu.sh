@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The warp backend on a CUDA GPU in one call: where its cycle goes, its CUDA tests, its agreement with the default
 # backend, and its speed in the TorchRL env and in training, with the OpenGL backend beside it on the same machine.
+# The env is timed for 30 s a size: random play ends nearly every room's episode at once, at cycle 90, and a shorter
+# window at 16,384 rooms would leave those resets out.
 # The log goes to warp_gpu.log, the tables to CSVs, in benchmarks/results/<gpu>/ (or $OUT when set).
 #
 #     bash benchmarks/warp_gpu.sh               # first makes .venv-gpu and installs the project's train, dev, warp extras
@@ -30,13 +32,13 @@ step() {
 step 20 nvidia-smi
 step 60 python -c "import sys, torch, mujoco, warp, mujoco_warp; print(sys.version.split()[0], 'torch', torch.__version__,
   'mujoco', mujoco.__version__, 'warp', warp.__version__, 'mujoco_warp', mujoco_warp.__version__)"
-step 240 python benchmarks/warp_profile.py --device cuda --num-envs 1024 4096 16384 --seconds 3 --warmup 2 \
+step 300 python benchmarks/warp_profile.py --device cuda --num-envs 4096 16384 --seconds 30 --warmup 2 \
   --csv "$out/warp_profile.csv"
 step 120 python -m pytest -q -p no:cacheprovider tests/test_warp.py tests/test_layers.py -k cuda
 step 60 python experiments/warp_agreement.py --device cuda
-step 150 python benchmarks/env_scaling.py --backend warp --device cuda --num-envs 1024 4096 16384 --seconds 3 \
+step 150 python benchmarks/env_scaling.py --backend warp --device cuda --num-envs 4096 16384 --seconds 30 \
   --warmup 2 --rounds 1 --no-peer --csv "$out/warp_env_scaling.csv"
-step 120 python benchmarks/train_speed.py --methods meta --backend warp --device cuda --num-envs 1024 --seconds 20 \
+step 120 python benchmarks/train_speed.py --methods meta --backend warp --device cuda --num-envs 4096 --seconds 15 \
   --rounds 1 --no-peer --parts
 step 60 python benchmarks/env_scaling.py --num-envs 1024 --seconds 3 --warmup 2 --rounds 1 --no-peer --device cuda \
   --csv "$out/opengl_env_scaling.csv"

@@ -439,7 +439,7 @@ def h100_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
-H200_RUNS = ("d7a6f27", "772515a")  # the folders of benchmarks/results/h200/, each the code it measured
+H200_RUNS = ("d7a6f27", "772515a", "7418c63", "21fc21d")  # the folders of benchmarks/results/h200/, each the code it measured
 
 
 def h200_profile() -> str:
@@ -458,6 +458,24 @@ def h200_profile() -> str:
     ]
     header = ["code", "rooms", "cycles/s", "move ms", "render ms", "device physics ms", "device render pass ms",
               "views to host ms", "device MiB per room"]  # fmt: skip
+    return markdown(header, lines)
+
+
+def h200_env_split() -> str:
+    """Where a cycle of the warp backend's TorchRL env went on the H200 machine, by code and number of rooms."""
+    parts = ("move", "look", "reset", "observe", "rest")
+    lines = [
+        [
+            f"`{code}`",
+            f"{int(r['num_envs']):,}",
+            f"{float(r['env_cycles_per_s']):,.0f}",
+            *(f"{float(r[f'env_{part}_ms']):.1f}" for part in parts),
+        ]
+        for code in H200_RUNS
+        for r in read(f"{BENCH}/h200/{code}/warp_profile.csv")
+        if r.get("env_cycles_per_s")
+    ]
+    header = ["code", "rooms", "cycles/s", "move ms", "look ms", "resets ms", "observations ms", "the rest ms"]
     return markdown(header, lines)
 
 
@@ -563,6 +581,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "h100-train": ("performance.md", h100_train),
     "h200-warp-profile": ("performance.md", h200_profile),
     "h200-warp-env": ("performance.md", h200_env),
+    "h200-warp-env-split": ("performance.md", h200_env_split),
     "h200-warp-train": ("performance.md", h200_train),
 }
 
