@@ -439,7 +439,8 @@ def h100_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
-H200_RUNS = ("d7a6f27", "772515a", "7418c63", "21fc21d")  # the folders of benchmarks/results/h200/, each the code it measured
+# the folders of benchmarks/results/h200/, each the code it measured
+H200_RUNS = ("d7a6f27", "772515a", "7418c63", "21fc21d")
 
 
 def h200_profile() -> str:
