@@ -391,28 +391,30 @@ class Simulator:
         return out
 
     def device_views(self, ids=None):
-        """First-person camera images of the rooms ``ids`` (distinct and increasing; all when ``None``) drawn anew
-        where the warp backend runs and left there: an (n, height, width, 3) uint8 Warp array, which
-        ``torch.from_dlpack`` reads in place, valid until the next render (copy what you keep). The same pixels as
-        :meth:`render`; the default backend draws on the host and has none (``ValueError``)."""
+        """First-person camera images of the rooms ``ids`` (all when ``None``; at most ``num_envs``) drawn anew where
+        the warp backend runs and left there: an (n, height, width, 3) uint8 Warp array, which ``torch.from_dlpack``
+        reads in place, lent until the renderer's next pass (any render, look or layer of this simulator: copy what
+        you keep). The same pixels as :meth:`render`; the default backend draws on the host and has none
+        (``ValueError``)."""
         if self.backend != "warp":
             raise ValueError(f"device_views() needs backend='warp'; backend={self.backend!r} draws with render()")
-        ids = self._as_ids(ids, changed=True)
+        ids = self._as_ids(ids)
         self.require_started("device_views()", ids)
         return self.renderer.device_views(self._qpos[ids], self._mocap_pos[ids])
 
     def observe(self, ids=None, device_images: bool = False) -> dict:
-        """The rooms' observations as every API gives them: ``image`` (:meth:`render`; with ``device_images``,
-        :meth:`device_views`), ``pan`` (:meth:`pan`) and, with a range sensor (``range_rays`` > 0), ``range``
-        (:meth:`ranges`); with ``depth`` and ``segmentation`` set in the config, ``depth`` (:meth:`render_depth`)
-        and ``segmentation`` (:meth:`render_segmentation`)."""
-        observation = {"image": self.device_views(ids) if device_images else self.render(ids), "pan": self.pan(ids)}
+        """The rooms' observations as every API gives them: ``image`` (:meth:`render`; with ``device_images``, the
+        views :meth:`device_views` lends), ``pan`` (:meth:`pan`) and, with a range sensor (``range_rays`` > 0),
+        ``range`` (:meth:`ranges`); with ``depth`` and ``segmentation`` set in the config, ``depth``
+        (:meth:`render_depth`) and ``segmentation`` (:meth:`render_segmentation`)."""
+        others = {"pan": self.pan(ids)}
         if self.config.range_rays:
-            observation["range"] = self.ranges(ids)
+            others["range"] = self.ranges(ids)
         layers = tuple(name for name in LAYERS if getattr(self.config, name))
         if layers:
-            observation |= self._layers(layers, ids)
-        return observation
+            others |= self._layers(layers, ids)
+        image = self.device_views(ids) if device_images else self.render(ids)  # last: a pass after it would redraw
+        return {"image": image, **others}
 
     def render_depth(self, ids=None) -> np.ndarray:
         """Depth of the camera images of the rooms ``ids``: (n, height, width) float32, the distance in metres along

@@ -220,6 +220,8 @@ class WarpRenderer:
         warp, _ = _warp()
         if len(qpos) > self.views_per_pass:
             raise ValueError(f"{len(qpos)} views are more than one pass draws ({self.views_per_pass})")
+        if not len(qpos):
+            return self._rgb[:0]
         with warp.ScopedDevice(self.device):
             self._load_and_draw(qpos, mocap_pos)
         self._lent = True

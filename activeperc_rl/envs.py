@@ -141,8 +141,9 @@ class ActivePerceptionEnv(EnvBase):
         self._truncated = np.zeros(num_envs, dtype=bool)
         self._seed_rngs = [np.random.default_rng() for _ in range(num_envs)]
         past = self.frame_stack - 1  # each room's views of the cycles before, oldest first
-        self._past_images = torch.zeros((num_envs, config.height, config.width, 3 * past), dtype=torch.uint8)
-        self._past_images = self._past_images.to(self.device)
+        self._past_images = torch.zeros(
+            (num_envs, config.height, config.width, 3 * past), dtype=torch.uint8, device=self.device
+        )
         self._past_pans = torch.zeros((num_envs, past), dtype=torch.float32, device=self.device)
         self._looker = None
         self._looker_spec = Composite(shape=self.batch_size, device=self.device)
@@ -363,22 +364,24 @@ class ActivePerceptionEnv(EnvBase):
         }
 
     def load_rooms_state(self, state: dict) -> None:
-        """Restore what :meth:`rooms_state` returned; ``ValueError`` when it is of another number of rooms."""
+        """Restore what :meth:`rooms_state` returned; ``ValueError`` when it is of another number of rooms or frame
+        stack (and the env is left as it was)."""
         for key in ("episode_seeds", "terminated", "truncated"):
             if np.shape(state[key]) != (self.num_envs,):
                 raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit {self.num_envs} rooms")
+        # states saved before frame stacks existed hold none (their envs stacked none)
+        pasts = {key: getattr(self, f"_{key}") for key in ("past_images", "past_pans")} if self.frame_stack > 1 else {}
+        for key, past in pasts.items():
+            if np.shape(state[key]) != tuple(past.shape):
+                raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit this env's frame stack")
         self.sim.set_state(state["sim"])
         self.episode_seeds[:] = state["episode_seeds"]
         for rng, saved in zip(self._seed_rngs, state["seed_rngs"], strict=True):
             rng.bit_generator.state = saved
         self._terminated[:] = state["terminated"]
         self._truncated[:] = state["truncated"]
-        if self.frame_stack > 1:  # states saved before frame stacks existed hold none (their envs stacked none)
-            for key in ("past_images", "past_pans"):
-                past = getattr(self, f"_{key}")
-                if np.shape(state[key]) != tuple(past.shape):
-                    raise ValueError(f"its {key} of shape {np.shape(state[key])} do not fit this env's frame stack")
-                past[:] = torch.as_tensor(np.asarray(state[key])).to(past.device)
+        for key, past in pasts.items():
+            past[:] = torch.as_tensor(np.asarray(state[key])).to(past.device)
 
     def random_state(self) -> torch.Tensor:
         """The torch random state of the process this env steps in: in a collector's worker, the stream its policy
@@ -417,7 +420,7 @@ class ActivePerceptionEnv(EnvBase):
         backend's views copied where they were drawn, the rest from the host."""
         observation = self.sim.observe(ids, device_images=self._device_images)
         return {
-            key: torch.from_numpy(value).to(self.device) if isinstance(value, np.ndarray) else _copied(value)
+            key: (torch.from_numpy(value) if isinstance(value, np.ndarray) else _copied(value)).to(self.device)
             for key, value in observation.items()
         }
 

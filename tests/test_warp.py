@@ -143,8 +143,19 @@ def test_views_left_on_the_device_are_the_rendered_views(device):
     lent = torch.from_dlpack(warp.device_views([1, 3, 4])).cpu().numpy().copy()
     assert lent.shape == (3, warp.config.height, warp.config.width, 3)
     assert np.array_equal(lent, warp.render([1, 3, 4]))
+    assert warp.device_views([]).shape == (0, warp.config.height, warp.config.width, 3)
     with pytest.raises(ValueError, match="device_views\\(\\) needs backend='warp'"):
         Simulator(num_envs=1).device_views()
+
+
+def test_observations_with_layers_lend_the_views_of_their_last_pass():
+    import torch
+
+    _, warp = pair(EnvConfig(depth=True, segmentation=True), rooms=3)
+    seen = warp.observe([2, 0], device_images=True)
+    assert list(seen) == ["image", "pan", "range", "depth", "segmentation"]
+    assert warp.renderer._lent  # the layers' pass came first: the next pass waits for what reads the image
+    assert np.array_equal(torch.from_dlpack(seen["image"]).numpy().copy(), warp.render([2, 0]))
 
 
 @pytest.mark.parametrize("frame_stack", [1, 2])
