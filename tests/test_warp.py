@@ -22,7 +22,8 @@ def gpus() -> int:
     return warp.get_cuda_device_count()
 
 
-DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif("gpus() == 0", reason="needs a CUDA GPU"))]
+ON_CUDA = pytest.mark.skipif("gpus() == 0", reason="needs a CUDA GPU")
+DEVICES = ["cpu", pytest.param("cuda", marks=ON_CUDA)]
 
 
 def pair(config: EnvConfig | None = None, rooms: int = ROOMS, device: str = "cpu") -> tuple[Simulator, Simulator]:
@@ -158,8 +159,8 @@ def test_observations_with_layers_lend_the_views_of_their_last_pass():
     assert np.array_equal(torch.from_dlpack(seen["image"]).numpy().copy(), warp.render([2, 0]))
 
 
-@pytest.mark.parametrize("frame_stack", [1, 2])
-def test_the_torchrl_env_reads_warp_views_on_the_device_as_it_reads_them_on_the_host(frame_stack):
+@pytest.mark.parametrize(("device", "frame_stack"), [("cpu", 1), ("cpu", 2), pytest.param("cuda", 1, marks=ON_CUDA)])
+def test_the_torchrl_env_reads_warp_views_on_the_device_as_it_reads_them_on_the_host(device, frame_stack):
     import torch
 
     from activeperc_rl.envs import make_env
@@ -168,7 +169,8 @@ def test_the_torchrl_env_reads_warp_views_on_the_device_as_it_reads_them_on_the_
     rollouts = []
     for device_images in (True, False):
         looker = RandomPolicy(("looker",))
-        env = make_env(3, seed=5, backend="warp", max_cycles=6, frame_stack=frame_stack, looker=looker, look_views=True)
+        options = {"max_cycles": 6, "frame_stack": frame_stack, "looker": looker, "look_views": True, "depth": True}
+        env = make_env(3, device=device, seed=5, backend="warp", **options)
         env._device_images = device_images  # False: the views come through the host, as on the default backend
         torch.manual_seed(0)
         rollouts.append(env.rollout(9, RandomPolicy(("mover",)), break_when_any_done=False))
