@@ -73,8 +73,8 @@ def sample_layout(
 
 
 def _draw(rng: np.random.Generator, num_obstacles: int, goal_distance: float, heading_spread: float) -> Layout | None:
-    """One attempt at a layout; ``None`` when an occluder finds no free spot. (Plain floats, not numpy's small arrays:
-    the same operations in the same order round alike, and a reset of many rooms costs a quarter of the time.)"""
+    """One attempt at a layout; ``None`` when an occluder finds no free spot. It computes in plain floats: the same
+    operations as on numpy's small arrays, in the same order, round alike and cost less."""
     half = goal_distance / 2
     start = (rng.uniform(-half - X_JITTER, -half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y))
     goal = (rng.uniform(half - X_JITTER, half + X_JITTER), rng.uniform(-SIDE_Y, SIDE_Y))
