@@ -180,7 +180,9 @@ class Method:
         if kind == "sgd":
             self.optimizers[name] = torch.optim.SGD(params, lr=lr)
         else:
-            self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5)
+            # portable: torch's fused step, whose square root rounds alike on every CPU (the unfused step's is MKL's)
+            fused = True if self.config.portable else None
+            self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5, fused=fused)
 
     def _step(self, name: str, loss: nn.Module, *inputs: TensorDictBase) -> dict[str, float]:
         """One step of optimizer ``name`` on the sum of the ``loss_*`` entries of ``loss(*inputs)``.

@@ -1,8 +1,8 @@
 """What portable mode costs in training frames/s, in rounds of fresh trainings.
 
-Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, with ``--portable``, and with portable mode's
-pins but oneDNN switched off (convolutions in ATen's own kernels); the digests of their networks say which runs
-agree.
+Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, with ``--portable``, and with ``--portable``
+but oneDNN and NNPACK switched off (convolutions in ATen's own kernels); the digests of their networks say which
+runs agree.
 
 Run it from the repository root::
 
@@ -32,11 +32,11 @@ import golden  # noqa: E402 (tests/ on the path first)
 from activeperc_rl.methods import METHODS  # noqa: E402
 from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest  # noqa: E402
 
-MODES = {  # name: (extra environment, extra flags of activeperc-train, whether torch may call oneDNN)
-    "default": ({}, (), True),  # torch's own choice (AVX-512 on a CPU that has it)
-    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, (), True),  # only the convolutions' library capped
-    "portable": ({}, ("--portable",), True),  # every variable of activeperc_rl.portable.PINNED_ENVIRONMENT
-    "portable_no_onednn": (PINNED_ENVIRONMENT, (), False),  # portable's pins, oneDNN off (portable_bits' candidate)
+MODES = {  # name: (extra environment, extra flags of activeperc-train, the convolutions' library or None: torch's)
+    "default": ({}, (), None),  # torch's own choice (AVX-512 on a CPU that has it)
+    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, (), None),  # only the convolutions' library capped
+    "portable": ({}, ("--portable",), None),  # activeperc-train --portable
+    "portable_aten_conv": (PINNED_ENVIRONMENT, ("--portable",), "aten"),  # portable_bits' candidate of that name
 }
 
 
@@ -44,9 +44,11 @@ def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
     """Train in ``mode`` into ``out``: (frames/s after the first iteration, digest of the saved networks)."""
     import torch
 
-    extra, flags, onednn = MODES[mode]
+    extra, flags, convolutions = MODES[mode]
     environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | extra
-    launcher = ["-m", "activeperc_rl.cli"] if onednn else ["-c", golden.PINNED_LAUNCHER.format(False)]
+    launcher = ["-m", "activeperc_rl.cli"]
+    if convolutions:
+        launcher = ["-c", golden.PINNED_LAUNCHER.format(*golden.CONVOLUTIONS[convolutions])]
     command = [sys.executable, *launcher, "--method", method, "--frames", str(frames), *flags]
     command += ["--eval-episodes", "0", "--no-progress", "--out", str(out)]
     subprocess.run(command, env=environment, check=True, capture_output=True, text=True)

@@ -31,9 +31,13 @@ TRAINING_METHODS = ("meta", "fixed_forward")
 TRAINING_FLAGS = ("--portable", "--frames", "3072", "--learner-threads", "2", "--torch-threads", "1")
 TRAINING_FLAGS += ("--eval-episodes", "0", "--no-progress")
 TRAINING_COLUMNS = ("frames", "iteration", "success_rate", "mean_return", "episodes")  # metrics.csv's, less timings
-# activeperc-train after setting torch's oneDNN switch, which no environment variable sets
+CONVOLUTIONS = {"onednn": (True, True), "nnpack": (False, True), "aten": (False, False)}
+"""Which library runs torch's CPU convolutions: torch's switches of oneDNN and of NNPACK (NNPACK takes batches of 16
+or more images where oneDNN is off; ATen's own im2col and MKL's matrix products take the rest)."""
+# activeperc-train after setting torch's oneDNN and NNPACK switches, which no environment variable sets
 PINNED_LAUNCHER = (
-    "import sys, torch; torch.backends.mkldnn.enabled = {}; from activeperc_rl import cli; sys.exit(cli.main())"
+    "import sys, torch; torch.backends.mkldnn.enabled = {}; torch.backends.nnpack.set_flags({}); "
+    "from activeperc_rl import cli; sys.exit(cli.main())"
 )
 SEEDS = (3, 17, 2024)
 CYCLES = 40
@@ -120,19 +124,27 @@ def traces(version: int) -> dict:
 
 
 def train_portable(
-    method: str, out: Path, pins: dict[str, str] | None = None, onednn: bool = True
+    method: str,
+    out: Path,
+    pins: dict[str, str] | None = None,
+    convolutions: str = "onednn",
+    portable_flag: bool = False,
+    wrapper: tuple[str, ...] = (),
 ) -> subprocess.CompletedProcess:
     """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
-    environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, the same run
-    without ``--portable`` in a process started with those variables and torch's oneDNN switch set to ``onednn``
-    (another pinning to compare)."""
+    environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
+    pinning to compare: the same run in a process started with those variables, its convolutions in the library
+    ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
+    picks torch's fused Adam step). ``wrapper`` goes before the command (an emulator: ``("qemu-x86_64", "-cpu",
+    "Haswell-v4")``)."""
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
     launcher, flags = ["-m", "activeperc_rl.cli"], list(TRAINING_FLAGS)
     if pins is not None:
         environment |= pins
-        launcher = ["-c", PINNED_LAUNCHER.format(onednn)]
-        flags.remove("--portable")
-    command = [sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
+        launcher = ["-c", PINNED_LAUNCHER.format(*CONVOLUTIONS[convolutions])]
+        if not portable_flag:
+            flags.remove("--portable")
+    command = [*wrapper, sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")

@@ -369,7 +369,7 @@ def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
     speed = load_script("portable_speed")
     speed.main(["--method", "fixed_forward", "--frames", "512", "--rounds", "2"])
     rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
-    assert set(speed.MODES) == {"default", "onednn", "portable", "portable_no_onednn"} <= set(rows)
+    assert set(speed.MODES) == {"default", "onednn", "portable", "portable_aten_conv"} <= set(rows)
     assert all(len(rows[mode].split(", ")) == 1 for mode in speed.MODES), rows
 
 
@@ -383,12 +383,30 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     monkeypatch.setattr(bits.golden, "TRAINING_METHODS", ("fixed_forward",))
     flags = ("--portable", "--frames", "512", "--learner-threads", "1", "--torch-threads", "1", "--eval-episodes", "0")
     monkeypatch.setattr(bits.golden, "TRAINING_FLAGS", (*flags, "--no-progress"))
-    bits.main(["--only", "portable", "portable_no_onednn"])
+    bits.main(["--only", "portable", "unfused_adam"])
     stored, vendor = json.loads(results.read_text()), bits.cpu_vendor()
-    assert set(stored) == {"portable", "portable_no_onednn"}
-    assert set(stored["portable"]) == {"OtherVendor", vendor} and set(stored["portable_no_onednn"]) == {vendor}
+    assert set(stored) == {"portable", "unfused_adam"}
+    assert set(stored["portable"]) == {"OtherVendor", vendor} and set(stored["unfused_adam"]) == {vendor}
+    assert stored["portable"][vendor] != stored["unfused_adam"][vendor]  # --portable's fused Adam step
     rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
-    assert rows["portable"] == "no" and rows["portable_no_onednn"] == "one vendor so far"
+    assert rows["portable"] == "no" and rows["unfused_adam"] == "one vendor so far"
+
+
+def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_differ(tmp_path, monkeypatch, capsys):
+    """Digests are taken in a pinned process, stored under this machine's name beside other machines', and an
+    operation whose digests differ is marked."""
+    ops = load_script("portable_ops")
+    results = tmp_path / "portable_ops.json"
+    results.write_text(json.dumps({"Other machine": {"sqrt": "0123456789abcdef"}}))
+    monkeypatch.setattr(ops, "RESULTS", results)
+    ops.main([])
+    stored = json.loads(results.read_text())
+    (ours,) = set(stored) - {"Other machine"}
+    assert {"sqrt", "adam_fused", "network_aten_fused"} <= set(stored[ours])
+    rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
+    assert rows["sqrt"] == "no" and rows["adam_fused"] == "one machine so far"
+    ops.main([])  # a second run replaces this machine's digests with the same ones
+    assert json.loads(results.read_text())[ours] == stored[ours]
 
 
 def test_warp_profile_splits_a_cycle_and_times_the_device_parts(tmp_path, capsys):

@@ -66,3 +66,16 @@ def test_the_digest_of_a_state_sees_every_bit():
     assert portable.state_digest(state()) == portable.state_digest(state())
     assert portable.state_digest(state()) != portable.state_digest(flipped)
     assert portable.state_digest(state()) != portable.state_digest(state() | {"optimizers": {"step": 5}})
+
+
+@pytest.mark.parametrize("method", ["meta", "fixed_forward"])
+def test_portable_mode_takes_the_fused_adam_step(method):
+    """The unfused Adam step's square root is MKL's, which rounds by CPU vendor; portable mode's step is torch's
+    fused one, and the default keeps the unfused step (so default runs keep their bits)."""
+    from activeperc_rl.methods import make_method
+
+    small = dict(method=method, channels=(4,), hidden_size=8)
+    for is_portable in (False, True):
+        trainer = make_method(TrainConfig(portable=is_portable, **small), torch.device("cpu"), start=False)
+        adams = [o for o in trainer.optimizers.values() if isinstance(o, torch.optim.Adam)]
+        assert adams and all(bool(o.defaults["fused"]) is is_portable for o in adams)

@@ -1,0 +1,146 @@
+"""Which of torch's CPU operations round alike on every CPU: a digest of each on fixed inputs, under portable pins.
+
+The operations that training calls and that may round by CPU (MKL's vector maths, Adam's steps), and the mover's
+network trained three steps with each library of convolutions and each Adam step.
+
+Run it on one machine, and again on another or under an emulated CPU (QEMU's user mode, ``apt install qemu-user``);
+each run adds its digests to ``benchmarks/results/portable_ops.json`` under the machine's name, and an operation
+whose digests differ rounds by CPU. Portable mode's pins are set for it (as ``--portable`` sets them)::
+
+    python benchmarks/portable_ops.py                                   # this CPU
+    python benchmarks/portable_ops.py --emulate Haswell-v4              # an Intel CPU, emulated (about 2 minutes)
+    python benchmarks/portable_ops.py --emulate EPYC-Rome-v2
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+from functools import partial
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+import golden  # noqa: E402 (tests/ on the path first)
+
+from activeperc_rl.atomic import atomic_path  # noqa: E402
+from activeperc_rl.portable import PINNED_ENVIRONMENT, cpu_vendor, machine  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results" / "portable_ops.json"
+
+
+def digests() -> dict[str, str]:
+    """16 hex digits of each operation's result on 100,000 fixed inputs (one thread), and of three Adam steps."""
+    import torch
+
+    torch.set_num_threads(1)
+    generator = torch.Generator().manual_seed(0)
+    x = (torch.rand(100_000, generator=generator) - 0.5) * 20
+    positive = x.abs() + 1e-3
+    operations = {
+        "sin": lambda: x.sin(),
+        "cos": lambda: x.cos(),
+        "exp": lambda: x.exp(),
+        "log": lambda: positive.log(),
+        "sqrt": lambda: positive.sqrt(),
+        "pow_0.5": lambda: positive.pow(0.5),
+        "tanh": lambda: x.tanh(),
+        "logsumexp": lambda: x.view(-1, 4).logsumexp(-1),
+        "log_softmax": lambda: x.view(-1, 4).log_softmax(-1),
+        "reciprocal": lambda: positive.reciprocal(),
+        "std": lambda: x.view(-1, 100).std(-1),
+        "norm": lambda: x.view(-1, 100).norm(dim=-1),
+        "adam": lambda: _adam(x, fused=None),
+        "adam_fused": lambda: _adam(x, fused=True),
+    }
+    for convolutions in golden.CONVOLUTIONS:
+        for fused in (None, True):
+            operations[f"network_{convolutions}{'_fused' if fused else ''}"] = partial(_network, convolutions, fused)
+    return {name: hashlib.sha256(f().numpy().tobytes()).hexdigest()[:16] for name, f in operations.items()}
+
+
+def _adam(x, fused: bool | None):
+    import torch
+
+    parameter = x.clone().requires_grad_()
+    parameter.grad = x.flip(0) * 1e-3
+    optimizer = torch.optim.Adam([parameter], lr=3e-4, eps=1e-5, fused=fused)
+    for _ in range(3):
+        optimizer.step()
+    return parameter.detach()
+
+
+def _network(convolutions: str, fused: bool | None):
+    """The default room's mover network after three Adam steps on batches of 1, 16 and 256 random views (two
+    threads, the convolutions in the library ``convolutions`` names: ``golden.CONVOLUTIONS``): its outputs, gradients
+    and weights."""
+    import torch
+
+    from activeperc_env import EnvConfig
+    from activeperc_rl.models import Head, make_encoder
+
+    torch.set_num_threads(2)
+    torch.backends.mkldnn.enabled, nnpack = golden.CONVOLUTIONS[convolutions]
+    torch.backends.nnpack.set_flags(nnpack)
+    torch.manual_seed(0)
+    env = EnvConfig()
+    network = Head(make_encoder(env, (16, 32), 256), 256, 3)
+    optimizer = torch.optim.Adam(network.parameters(), lr=3e-4, eps=1e-5, fused=fused)
+    generator = torch.Generator().manual_seed(1)
+    seen = []
+    for batch in (1, 16, 256):
+        image = torch.randint(0, 256, (batch, env.height, env.width, 3), generator=generator, dtype=torch.uint8)
+        pan = torch.rand(batch, 1, generator=generator)
+        ranges = torch.rand(batch, env.range_rays, generator=generator) * env.range_max
+        logits = network(image, pan, ranges)
+        loss = -torch.log_softmax(logits, -1)[:, 0].mean() + logits.pow(2).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        seen += [logits.detach().flatten(), *(p.grad.flatten() for p in network.parameters())]
+    torch.set_num_threads(1)
+    return torch.cat([*seen, *(p.detach().flatten() for p in network.parameters())])
+
+
+def table(stored: dict) -> str:
+    """Each operation's digests by machine, and whether the machines that took it agree."""
+    machines = sorted(stored)
+    lines = [f"| operation | {' | '.join(machines)} | agree |", "|---" * (len(machines) + 2) + "|"]
+    for name in stored[machines[0]]:
+        cells = [stored[m].get(name, "") for m in machines]
+        present = {cell for cell in cells if cell}
+        agree = "one machine so far" if sum(map(bool, cells)) < 2 else "yes" if len(present) == 1 else "no"
+        lines.append(f"| {name} | {' | '.join(cells)} | {agree} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Parse the flags, take the digests in a pinned process (emulated with ``--emulate``), add them to
+    :data:`RESULTS` under this machine's name and print every machine's."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--emulate", metavar="CPU", help="run under qemu-x86_64 -cpu CPU (e.g. Haswell-v4)")
+    parser.add_argument("--digests", action="store_true", help=argparse.SUPPRESS)  # the pinned process's part
+    args = parser.parse_args(argv)
+    if args.digests:
+        print(json.dumps(digests()))
+        return
+    # torch reads the pins when it starts: the digests come from a fresh process, emulated or not
+    wrapper = ["qemu-x86_64", "-cpu", args.emulate] if args.emulate else []
+    command = [*wrapper, sys.executable, __file__, "--digests"]
+    result = subprocess.run(command, env=os.environ | PINNED_ENVIRONMENT, capture_output=True, text=True)
+    if result.returncode:
+        raise SystemExit(f"{' '.join(command)} failed:\n{result.stderr[-2000:]}")
+    name = f"emulated {args.emulate}" if args.emulate else f"{cpu_vendor()} ({machine()})"
+    stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    stored[name] = json.loads(result.stdout)
+    with atomic_path(RESULTS) as temporary:
+        temporary.write_text(json.dumps(stored, indent=1) + "\n")
+    print(table(stored))
+
+
+if __name__ == "__main__":
+    main()
