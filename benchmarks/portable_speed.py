@@ -1,8 +1,7 @@
 """What portable mode costs in training frames/s, in rounds of fresh trainings.
 
-Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, with ``--portable``, and with ``--portable``
-but oneDNN and NNPACK switched off (convolutions in ATen's own kernels); the digests of their networks say which
-runs agree.
+Torch's CPU kernels as torch picks them, with oneDNN capped at AVX2, and with ``--portable``; the digests of
+their networks say which runs agree.
 
 Run it from the repository root::
 
@@ -24,19 +23,13 @@ from pathlib import Path
 
 import harness
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+from activeperc_rl.methods import METHODS
+from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
 
-import golden  # noqa: E402 (tests/ on the path first)
-
-from activeperc_rl.methods import METHODS  # noqa: E402
-from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest  # noqa: E402
-
-MODES = {  # name: (extra environment, extra flags of activeperc-train, the convolutions' library or None: torch's)
-    "default": ({}, (), None),  # torch's own choice (AVX-512 on a CPU that has it)
-    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, (), None),  # only the convolutions' library capped
-    "portable": ({}, ("--portable",), None),  # activeperc-train --portable
-    "portable_aten_conv": (PINNED_ENVIRONMENT, ("--portable",), "aten"),  # portable_bits' candidate of that name
+MODES = {  # name: (extra environment, extra flags of activeperc-train)
+    "default": ({}, ()),  # torch's own choice (AVX-512 on a CPU that has it)
+    "onednn": ({"ONEDNN_MAX_CPU_ISA": "AVX2"}, ()),  # only the convolutions' library capped
+    "portable": ({}, ("--portable",)),  # activeperc-train --portable
 }
 
 
@@ -44,12 +37,9 @@ def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
     """Train in ``mode`` into ``out``: (frames/s after the first iteration, digest of the saved networks)."""
     import torch
 
-    extra, flags, convolutions = MODES[mode]
+    extra, flags = MODES[mode]
     environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | extra
-    launcher = ["-m", "activeperc_rl.cli"]
-    if convolutions:
-        launcher = ["-c", golden.PINNED_LAUNCHER.format(*golden.CONVOLUTIONS[convolutions])]
-    command = [sys.executable, *launcher, "--method", method, "--frames", str(frames), *flags]
+    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, "--frames", str(frames), *flags]
     command += ["--eval-episodes", "0", "--no-progress", "--out", str(out)]
     subprocess.run(command, env=environment, check=True, capture_output=True, text=True)
     with open(out / "metrics.csv", newline="") as file:

@@ -369,7 +369,7 @@ def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
     speed = load_script("portable_speed")
     speed.main(["--method", "fixed_forward", "--frames", "512", "--rounds", "2"])
     rows = {line.split("|")[1].strip(): line.split("|")[4].strip() for line in table_lines(capsys.readouterr().out)}
-    assert set(speed.MODES) == {"default", "onednn", "portable", "portable_aten_conv"} <= set(rows)
+    assert set(speed.MODES) == {"default", "onednn", "portable"} <= set(rows)
     assert all(len(rows[mode].split(", ")) == 1 for mode in speed.MODES), rows
 
 
