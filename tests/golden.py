@@ -129,14 +129,12 @@ def train_portable(
     pins: dict[str, str] | None = None,
     convolutions: str = "onednn",
     portable_flag: bool = False,
-    wrapper: tuple[str, ...] = (),
 ) -> subprocess.CompletedProcess:
     """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
     environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
     pinning to compare: the same run in a process started with those variables, its convolutions in the library
     ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
-    picks torch's fused Adam step). ``wrapper`` goes before the command (an emulator: ``("qemu-x86_64", "-cpu",
-    "Haswell-v4")``)."""
+    picks torch's fused Adam step)."""
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
     launcher, flags = ["-m", "activeperc_rl.cli"], list(TRAINING_FLAGS)
     if pins is not None:
@@ -144,7 +142,7 @@ def train_portable(
         launcher = ["-c", PINNED_LAUNCHER.format(*CONVOLUTIONS[convolutions])]
         if not portable_flag:
             flags.remove("--portable")
-    command = [*wrapper, sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
+    command = [sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")
