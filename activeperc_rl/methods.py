@@ -244,6 +244,9 @@ class Method:
                 module.load_state_dict(state["modules"][k])
             for k, optimizer in self.optimizers.items():
                 optimizer.load_state_dict(state["optimizers"][k])
+                for group in optimizer.param_groups:  # the step the config asks for, not the saved one's
+                    if "fused" in group:
+                        group["fused"] = optimizer.defaults["fused"]
         except (RuntimeError, ValueError, KeyError) as error:  # shapes or parameter groups of other networks
             lines = [line.strip() for line in str(error).splitlines() if line.strip()]
             raise ValueError(f"its {k!r} does not fit the config: {' '.join(lines[:2])}") from error

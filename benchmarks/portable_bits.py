@@ -7,7 +7,7 @@ on an AMD machine; a candidate whose digests agree across the vendors trains the
 
 Run it from the repository root::
 
-    python benchmarks/portable_bits.py                 # every candidate (about 5 minutes on 2 cores)
+    python benchmarks/portable_bits.py                 # every candidate (about 10 minutes on 2 cores)
     python benchmarks/portable_bits.py --only portable
 """
 

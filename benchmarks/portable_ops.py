@@ -34,7 +34,8 @@ RESULTS = Path(__file__).resolve().parent / "results" / "portable_ops.json"
 
 
 def digests() -> dict[str, str]:
-    """16 hex digits of each operation's result on 100,000 fixed inputs (one thread), and of three Adam steps."""
+    """16 hex digits of each operation's result on 100,000 fixed inputs (one thread), of three Adam steps, and of
+    the mover's network trained three steps with each library of convolutions (:func:`_network`)."""
     import torch
 
     torch.set_num_threads(1)
@@ -110,7 +111,7 @@ def table(stored: dict) -> str:
     """Each operation's digests by machine, and whether the machines that took it agree."""
     machines = sorted(stored)
     lines = [f"| operation | {' | '.join(machines)} | agree |", "|---" * (len(machines) + 2) + "|"]
-    for name in stored[machines[0]]:
+    for name in dict.fromkeys(name for machine_ in machines for name in stored[machine_]):
         cells = [stored[m].get(name, "") for m in machines]
         present = {cell for cell in cells if cell}
         agree = "one machine so far" if sum(map(bool, cells)) < 2 else "yes" if len(present) == 1 else "no"
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--digests", action="store_true", help=argparse.SUPPRESS)  # the pinned process's part
     args = parser.parse_args(argv)
     if args.digests:
-        print(json.dumps(digests()))
+        print(json.dumps({"machine": machine(), "digests": digests()}))
         return
     # torch reads the pins when it starts: the digests come from a fresh process, emulated or not
     wrapper = ["qemu-x86_64", "-cpu", args.emulate] if args.emulate else []
@@ -134,9 +135,10 @@ def main(argv: list[str] | None = None) -> None:
     result = subprocess.run(command, env=os.environ | PINNED_ENVIRONMENT, capture_output=True, text=True)
     if result.returncode:
         raise SystemExit(f"{' '.join(command)} failed:\n{result.stderr[-2000:]}")
-    name = f"emulated {args.emulate}" if args.emulate else f"{cpu_vendor()} ({machine()})"
+    taken = json.loads(result.stdout)  # the pinned process names its kernels (AVX2)
+    name = f"emulated {args.emulate}" if args.emulate else f"{cpu_vendor()} ({taken['machine']})"
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    stored[name] = json.loads(result.stdout)
+    stored[name] = taken["digests"]
     with atomic_path(RESULTS) as temporary:
         temporary.write_text(json.dumps(stored, indent=1) + "\n")
     print(table(stored))

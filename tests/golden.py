@@ -135,6 +135,10 @@ def train_portable(
     pinning to compare: the same run in a process started with those variables, its convolutions in the library
     ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
     picks torch's fused Adam step)."""
+    if pins is None and (convolutions != "onednn" or portable_flag):
+        raise ValueError("convolutions and portable_flag choose another pinning: give its pins too")
+    if portable_flag and pins != portable.PINNED_ENVIRONMENT:
+        raise ValueError(f"--portable would restart the run with {portable.PINNED_ENVIRONMENT}, not with {pins}")
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
     launcher, flags = ["-m", "activeperc_rl.cli"], list(TRAINING_FLAGS)
     if pins is not None:

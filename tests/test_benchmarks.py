@@ -387,7 +387,6 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     stored, vendor = json.loads(results.read_text()), bits.cpu_vendor()
     assert set(stored) == {"portable", "unfused_adam"}
     assert set(stored["portable"]) == {"OtherVendor", vendor} and set(stored["unfused_adam"]) == {vendor}
-    assert stored["portable"][vendor] != stored["unfused_adam"][vendor]  # --portable's fused Adam step
     rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
     assert rows["portable"] == "no" and rows["unfused_adam"] == "one vendor so far"
 

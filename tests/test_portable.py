@@ -78,4 +78,17 @@ def test_portable_mode_takes_the_fused_adam_step(method):
     for is_portable in (False, True):
         trainer = make_method(TrainConfig(portable=is_portable, **small), torch.device("cpu"), start=False)
         adams = [o for o in trainer.optimizers.values() if isinstance(o, torch.optim.Adam)]
-        assert adams and all(bool(o.defaults["fused"]) is is_portable for o in adams)
+        assert adams and all(bool(g["fused"]) is is_portable for o in adams for g in o.param_groups)
+
+
+def test_a_resumed_portable_run_takes_the_fused_step_whatever_its_checkpoint_took():
+    """Adam's load_state_dict takes the saved groups' settings: a portable run resumed from a checkpoint of the
+    unfused step (portable mode before it took the fused one) still takes the fused step."""
+    from activeperc_rl.methods import make_method
+
+    small = dict(method="fixed_forward", channels=(4,), hidden_size=8)
+    unfused = make_method(TrainConfig(**small), torch.device("cpu"), start=False)
+    resumed = make_method(TrainConfig(portable=True, **small), torch.device("cpu"), start=False)
+    resumed.load_state_dict(unfused.state_dict())
+    adams = [o for o in resumed.optimizers.values() if isinstance(o, torch.optim.Adam)]
+    assert adams and all(g["fused"] is True for o in adams for g in o.param_groups)
