@@ -64,9 +64,9 @@ class TrainConfig:
     """Threads of torch's CPU ops during the updates (0: every CPU this process may use); a CPU run repeats
     exactly only with the same value."""
     portable: bool = False
-    """Pin torch's CPU kernels (ATen's and oneDNN's at AVX2, MKL's on the branch every vendor runs alike) and take
-    torch's fused Adam step, so that a config and seed train the same run on other x86-64 CPUs with AVX2 of the same
-    vendor (across vendors not yet checked whole)."""
+    """Pin torch's CPU kernels (ATen's and oneDNN's at AVX2, MKL's on the branch every vendor runs alike) and the
+    renderer's shaders (llvmpipe's, without SSE or AVX), and take torch's fused Adam step, so that a config and seed
+    train the same run on other x86-64 CPUs with AVX2 of the same vendor (across vendors not yet checked whole)."""
     collect_workers: int = 0
     """Workers that step each environment's rooms (0: this process steps them); another number of workers
     trains another run."""

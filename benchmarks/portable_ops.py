@@ -1,7 +1,7 @@
 """Which of torch's CPU operations round alike on every CPU: a digest of each on fixed inputs, under portable pins.
 
-The operations that training calls and that may round by CPU (MKL's vector maths, Adam's steps), and the mover's
-network trained three steps with each library of convolutions and each Adam step.
+The operations that training calls and that may round by CPU (MKL's vector maths, Adam's steps), the mover's
+network trained three steps with each library of convolutions and each Adam step, and the views llvmpipe draws.
 
 Run it on one machine, and again on another or under an emulated CPU (QEMU's user mode, ``apt install qemu-user``);
 each run adds its digests to ``benchmarks/results/portable_ops.json`` under the machine's name, and an operation
@@ -10,6 +10,7 @@ whose digests differ rounds by CPU. Portable mode's pins are set for it (as ``--
     python benchmarks/portable_ops.py                                   # this CPU
     python benchmarks/portable_ops.py --emulate Haswell-v4              # an Intel CPU, emulated (about 2 minutes)
     python benchmarks/portable_ops.py --emulate EPYC-Rome-v2
+    python benchmarks/portable_ops.py --emulate Haswell-v4 --without GALLIUM_NOSSE   # one pin left out
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ RESULTS = Path(__file__).resolve().parent / "results" / "portable_ops.json"
 
 def digests() -> dict[str, str]:
     """16 hex digits of each operation's result on 100,000 fixed inputs (one thread), of three Adam steps, and of
-    the mover's network trained three steps with each library of convolutions (:func:`_network`); and how many of
-    the 100,000 square roots are not correctly rounded (``sqrt_inexact``)."""
+    the mover's network trained three steps with each library of convolutions (:func:`_network`), of the views of
+    seeded rooms (:func:`_views`); and how many of the 100,000 square roots are not correctly rounded
+    (``sqrt_inexact``)."""
     import torch
 
     torch.set_num_threads(1)
@@ -62,6 +64,7 @@ def digests() -> dict[str, str]:
     for convolutions in golden.CONVOLUTIONS:
         for fused in (None, True):
             operations[f"network_{convolutions}{'_fused' if fused else ''}"] = partial(_network, convolutions, fused)
+    operations["views"] = _views
     taken = {name: hashlib.sha256(f().numpy().tobytes()).hexdigest()[:16] for name, f in operations.items()}
     # how many of the float32 roots are not the correctly rounded ones (float64's root, rounded once)
     taken["sqrt_inexact"] = str(int((positive.sqrt() != positive.double().sqrt().float()).sum()))
@@ -111,6 +114,28 @@ def _network(convolutions: str, fused: bool | None):
     return torch.cat([*seen, *(p.detach().flatten() for p in network.parameters())])
 
 
+def _views():
+    """The views of golden.SEEDS' rooms of the default room at both fields of view over five cycles of seeded
+    random moves and looks (before and after each look)."""
+    import numpy as np
+    import torch
+
+    from activeperc_env import EnvConfig, Simulator
+
+    seen = []
+    for fov in (60, 100):
+        sim = Simulator(EnvConfig(fov=fov), num_envs=len(golden.SEEDS), nthread=1)
+        sim.reset(seeds=list(golden.SEEDS))
+        rng = np.random.default_rng(0)
+        for _ in range(5):
+            sim.move(rng.integers(3, size=len(golden.SEEDS)))
+            seen.append(sim.render())
+            sim.look(rng.integers(3, size=len(golden.SEEDS)))
+            seen.append(sim.render())
+        sim.close()
+    return torch.from_numpy(np.stack(seen))
+
+
 def table(stored: dict) -> str:
     """Each operation's digests by machine, and whether the machines that took it agree."""
     machines = sorted(stored)
@@ -128,6 +153,9 @@ def main(argv: list[str] | None = None) -> None:
     :data:`RESULTS` under this machine's name and print every machine's."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--emulate", metavar="CPU", help="run under qemu-x86_64 -cpu CPU (e.g. Haswell-v4)")
+    parser.add_argument(
+        "--without", metavar="VARIABLE", choices=PINNED_ENVIRONMENT, help="leave this one of the pins unset"
+    )
     parser.add_argument("--digests", action="store_true", help=argparse.SUPPRESS)  # the pinned process's part
     args = parser.parse_args(argv)
     if args.digests:
@@ -136,11 +164,14 @@ def main(argv: list[str] | None = None) -> None:
     # torch reads the pins when it starts: the digests come from a fresh process, emulated or not
     wrapper = ["qemu-x86_64", "-cpu", args.emulate] if args.emulate else []
     command = [*wrapper, sys.executable, __file__, "--digests"]
-    result = subprocess.run(command, env=os.environ | PINNED_ENVIRONMENT, capture_output=True, text=True)
+    pins = {name: value for name, value in PINNED_ENVIRONMENT.items() if name != args.without}
+    environment = {name: value for name, value in os.environ.items() if name not in PINNED_ENVIRONMENT} | pins
+    result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise SystemExit(f"{' '.join(command)} failed:\n{result.stderr[-2000:]}")
     taken = json.loads(result.stdout)  # the pinned process names its kernels (AVX2)
     name = f"emulated {args.emulate}" if args.emulate else f"{cpu_vendor()} ({taken['machine']})"
+    name += f", without {args.without}" if args.without else ""
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
     stored[name] = taken["digests"]
     with atomic_path(RESULTS) as temporary:

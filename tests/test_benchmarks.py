@@ -114,6 +114,7 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
         ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
         ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
         ("portable_bits", ["--only", "nothing"], "invalid choice: 'nothing'"),
+        ("portable_ops", ["--without", "NOTHING"], "invalid choice: 'NOTHING'"),
         ("warp_profile", ["--repeats", "0"], "repeats must be >= 1, got 0"),
         ("warp_profile", ["--device", "tpu"], "device='tpu' is invalid"),
     ],
@@ -401,11 +402,14 @@ def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_d
     ops.main([])
     stored = json.loads(results.read_text())
     (ours,) = set(stored) - {"Other machine"}
-    assert {"sqrt", "adam_fused", "network_aten_fused"} <= set(stored[ours])
+    assert {"sqrt", "adam_fused", "network_aten_fused", "views"} <= set(stored[ours])
     rows = {line.split("|")[1].strip(): line.split("|")[-2].strip() for line in table_lines(capsys.readouterr().out)}
     assert rows["sqrt"] == "no" and rows["adam_fused"] == "one machine so far"
     ops.main([])  # a second run replaces this machine's digests with the same ones
     assert json.loads(results.read_text())[ours] == stored[ours]
+    ops.main(["--without", "GALLIUM_NOSSE"])  # one pin left out: another machine's name, the same torch kernels
+    stored = json.loads(results.read_text())
+    assert stored[f"{ours}, without GALLIUM_NOSSE"]["sqrt"] == stored[ours]["sqrt"]
 
 
 def test_warp_profile_splits_a_cycle_and_times_the_device_parts(tmp_path, capsys):
