@@ -65,8 +65,8 @@ class TrainConfig:
     exactly only with the same value."""
     portable: bool = False
     """Pin torch's CPU kernels (ATen's and oneDNN's at AVX2, MKL's on the branch every vendor runs alike) and the
-    renderer's shaders (llvmpipe's, without SSE or AVX), and take torch's fused Adam step, so that a config and seed
-    train the same run on other x86-64 CPUs with AVX2 of the same vendor (across vendors not yet checked whole)."""
+    renderer (Mesa's softpipe, which compiles nothing for the CPU), and take torch's fused Adam step, so that a
+    config and seed train the same run on other x86-64 CPUs with AVX2 (docs/training.md says which were checked)."""
     collect_workers: int = 0
     """Workers that step each environment's rooms (0: this process steps them); another number of workers
     trains another run."""

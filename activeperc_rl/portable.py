@@ -1,10 +1,10 @@
-"""Portable mode: torch's CPU kernels and the renderer's shaders pinned, so that a run repeats on other x86-64 CPUs.
+"""Portable mode: torch's CPU kernels and the renderer pinned, so that a run repeats on other x86-64 CPUs.
 
 torch picks its CPU kernels (ATen's, oneDNN's, MKL's) by the CPU it finds, and kernels of another width round
-differently; Mesa's llvmpipe compiles the views' shaders for the CPU it finds too. Environment variables cap those
-choices, each read once, when its library starts. So the commands restart themselves with them set
-(:func:`restart_pinned`), and :func:`train` refuses a portable config in a process that started without them
-(:func:`require_pinned`).
+differently; Mesa's llvmpipe compiles the views' shaders for the CPU it finds too, so portable mode draws with Mesa's
+softpipe, which compiles nothing. Environment variables make those choices, each read once, when its library starts.
+So the commands restart themselves with them set (:func:`restart_pinned`), and :func:`train` refuses a portable
+config in a process that started without them (:func:`require_pinned`).
 """
 
 from __future__ import annotations
@@ -21,11 +21,12 @@ PINNED_ENVIRONMENT = {
     "ATEN_CPU_CAPABILITY": "avx2",
     "ONEDNN_MAX_CPU_ISA": "AVX2",
     "MKL_CBWR": "COMPATIBLE",
-    "GALLIUM_NOSSE": "1",
+    "GALLIUM_DRIVER": "softpipe",
+    "DRAW_USE_LLVM": "0",
 }
 """The variables that pin torch's CPU kernels (ATen's and oneDNN's convolutions at AVX2, MKL's matrix products on
-the branch that every vendor's CPU runs alike) and llvmpipe's shaders (compiled without SSE or AVX), and their
-values."""
+the branch that every vendor's CPU runs alike) and Mesa's software renderer (softpipe, its vertices without LLVM:
+nothing compiled for the CPU), and their values."""
 PINNED_CAPABILITY = "AVX2"
 """What ``torch.backends.cpu.get_cpu_capability()`` says in a pinned process."""
 _AVX2_OR_WIDER = ("AVX2", "AVX512")

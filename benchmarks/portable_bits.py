@@ -3,12 +3,14 @@
 It trains the golden training trace's runs (``tests/golden.py``: ``meta`` and ``fixed_forward``, seed 0, 3,072
 frames) under each candidate pinning, adds this CPU vendor's digests of their saved networks and optimizers to
 ``benchmarks/results/portable_bits.json`` and prints every candidate's digests by vendor. Run it on an Intel and
-on an AMD machine; a candidate whose digests agree across the vendors trains the same bits on both.
+on an AMD machine, or under a CPU that QEMU emulates; a candidate whose digests agree across the vendors trains
+the same bits on both.
 
 Run it from the repository root::
 
     python benchmarks/portable_bits.py                 # every candidate (about 10 minutes on 2 cores)
     python benchmarks/portable_bits.py --only portable
+    python benchmarks/portable_bits.py --only portable --emulate Haswell-v4   # an Intel CPU (about 25 minutes)
 """
 
 from __future__ import annotations
@@ -37,10 +39,11 @@ CANDIDATES = {  # name: (the pinning variables, the convolutions' library: golde
 }
 
 
-def train(candidate: str, method: str, out: Path) -> str:
-    """Train ``method`` as the golden trace does, pinned as ``candidate`` says, into ``out``: its weights' digest."""
+def train(candidate: str, method: str, out: Path, emulate: str | None = None) -> str:
+    """Train ``method`` as the golden trace does, pinned as ``candidate`` says, into ``out`` (under QEMU's ``emulate``
+    CPU if given): its weights' digest."""
     pins, convolutions, portable_flag = CANDIDATES[candidate]
-    golden.train_portable(method, out, pins, convolutions, portable_flag)
+    golden.train_portable(method, out, pins, convolutions, portable_flag, emulate)
     (digest,) = golden.training_trace(out)["weights"].values()
     return digest
 
@@ -62,15 +65,18 @@ def main(argv: list[str] | None = None) -> None:
     """Parse the flags, train every candidate, record this vendor's digests and print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", choices=CANDIDATES, default=list(CANDIDATES), help="candidates to train")
+    parser.add_argument("--emulate", metavar="CPU", help="train under qemu-x86_64 -cpu CPU (e.g. Haswell-v4)")
     args = parser.parse_args(argv)
     if not has_avx2():
         parser.error(f"every candidate pins torch's kernels to AVX2, and this CPU's are {cpu_capability()}")
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    vendor = cpu_vendor()
-    print(f"# {machine()}, {vendor}")
+    vendor = f"emulated {args.emulate}" if args.emulate else cpu_vendor()
+    print(f"# {vendor}" if args.emulate else f"# {machine()}, {vendor}")
     with tempfile.TemporaryDirectory() as folder:
         for candidate in args.only:
-            digests = {m: train(candidate, m, Path(folder) / candidate / m) for m in golden.TRAINING_METHODS}
+            digests = {
+                m: train(candidate, m, Path(folder) / candidate / m, args.emulate) for m in golden.TRAINING_METHODS
+            }
             stored.setdefault(candidate, {})[vendor] = digests
             print(f"{candidate}: {digests}", flush=True)
             with atomic_path(RESULTS) as temporary:  # each candidate's digests kept as soon as they are made

@@ -1,7 +1,7 @@
 """Which of torch's CPU operations round alike on every CPU: a digest of each on fixed inputs, under portable pins.
 
 The operations that training calls and that may round by CPU (MKL's vector maths, Adam's steps), the mover's
-network trained three steps with each library of convolutions and each Adam step, and the views llvmpipe draws.
+network trained three steps with each library of convolutions and each Adam step, and the views the renderer draws.
 
 Run it on one machine, and again on another or under an emulated CPU (QEMU's user mode, ``apt install qemu-user``);
 each run adds its digests to ``benchmarks/results/portable_ops.json`` under the machine's name, and an operation
@@ -10,7 +10,7 @@ whose digests differ rounds by CPU. Portable mode's pins are set for it (as ``--
     python benchmarks/portable_ops.py                                   # this CPU
     python benchmarks/portable_ops.py --emulate Haswell-v4              # an Intel CPU, emulated (about 2 minutes)
     python benchmarks/portable_ops.py --emulate EPYC-Rome-v2
-    python benchmarks/portable_ops.py --emulate Haswell-v4 --without GALLIUM_NOSSE   # one pin left out
+    python benchmarks/portable_ops.py --emulate Haswell-v4 --without GALLIUM_DRIVER  # one pin left out (llvmpipe)
 """
 
 from __future__ import annotations

@@ -129,14 +129,15 @@ def train_portable(
     pins: dict[str, str] | None = None,
     convolutions: str = "onednn",
     portable_flag: bool = False,
+    emulate: str | None = None,
 ) -> subprocess.CompletedProcess:
     """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
     environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
     pinning to compare: the same run in a process started with those variables, its convolutions in the library
     ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
-    picks torch's fused Adam step)."""
-    if pins is None and (convolutions != "onednn" or portable_flag):
-        raise ValueError("convolutions and portable_flag choose another pinning: give its pins too")
+    picks torch's fused Adam step). ``emulate`` (with ``pins``) runs it under ``qemu-x86_64 -cpu EMULATE``."""
+    if pins is None and (convolutions != "onednn" or portable_flag or emulate):
+        raise ValueError("convolutions, portable_flag and emulate choose another pinning: give its pins too")
     if portable_flag and pins != portable.PINNED_ENVIRONMENT:
         raise ValueError(f"--portable would restart the run with {portable.PINNED_ENVIRONMENT}, not with {pins}")
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
@@ -146,7 +147,8 @@ def train_portable(
         launcher = ["-c", PINNED_LAUNCHER.format(*CONVOLUTIONS[convolutions])]
         if not portable_flag:
             flags.remove("--portable")
-    command = [sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
+    wrapper = ["qemu-x86_64", "-cpu", emulate] if emulate else []  # pinned already: --portable starts no process
+    command = [*wrapper, sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")

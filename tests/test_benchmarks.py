@@ -392,6 +392,20 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     assert rows["portable"] == "no" and rows["unfused_adam"] == "one vendor so far"
 
 
+def test_portable_bits_stores_an_emulated_cpus_digests_under_its_name(tmp_path, monkeypatch, capsys):
+    """--emulate trains under QEMU's CPU (the training is faked here) and files the digests under that CPU's name."""
+    bits = load_script("portable_bits")
+    monkeypatch.setattr(bits, "RESULTS", tmp_path / "portable_bits.json")
+    asked = []
+    monkeypatch.setattr(bits, "train", lambda candidate, method, out, emulate: asked.append(emulate) or "f" * 16)
+    bits.main(["--only", "portable", "--emulate", "Haswell-v4"])
+    assert set(asked) == {"Haswell-v4"}
+    assert set(json.loads((tmp_path / "portable_bits.json").read_text())["portable"]) == {"emulated Haswell-v4"}
+    assert capsys.readouterr().out.startswith("# emulated Haswell-v4")
+    with pytest.raises(ValueError, match="give its pins too"):
+        bits.golden.train_portable("meta", tmp_path / "run", emulate="Haswell-v4")
+
+
 def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_differ(tmp_path, monkeypatch, capsys):
     """Digests are taken in a pinned process, stored under this machine's name beside other machines', and an
     operation whose digests differ is marked."""
@@ -407,9 +421,10 @@ def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_d
     assert rows["sqrt"] == "no" and rows["adam_fused"] == "one machine so far"
     ops.main([])  # a second run replaces this machine's digests with the same ones
     assert json.loads(results.read_text())[ours] == stored[ours]
-    ops.main(["--without", "GALLIUM_NOSSE"])  # one pin left out: another machine's name, the same torch kernels
+    ops.main(["--without", "GALLIUM_DRIVER"])  # one pin left out: another machine's name, the same torch kernels
     stored = json.loads(results.read_text())
-    assert stored[f"{ours}, without GALLIUM_NOSSE"]["sqrt"] == stored[ours]["sqrt"]
+    assert stored[f"{ours}, without GALLIUM_DRIVER"]["sqrt"] == stored[ours]["sqrt"]
+    assert stored[f"{ours}, without GALLIUM_DRIVER"]["views"] != stored[ours]["views"]  # llvmpipe, not softpipe
 
 
 def test_warp_profile_splits_a_cycle_and_times_the_device_parts(tmp_path, capsys):

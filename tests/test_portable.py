@@ -23,7 +23,8 @@ def test_portable_must_be_a_bool():
 
 def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
     """train() cannot pin torch's kernels once torch runs: it names the variables, and writes nothing."""
-    pins = "ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2 MKL_CBWR=COMPATIBLE GALLIUM_NOSSE=1"
+    pins = "ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2 MKL_CBWR=COMPATIBLE GALLIUM_DRIVER=softpipe "
+    pins += "DRAW_USE_LLVM=0"
     with pytest.raises(ValueError, match=pins):
         train(TrainConfig(portable=True, frames=256), tmp_path / "run")
     assert not (tmp_path / "run").exists()
