@@ -552,6 +552,10 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "room-v3-frame-stack-looks": ("reproduction.md", lambda: v3_looks(V3_FRAME_STACK)),
     "room-v3-bearing": ("reproduction.md", lambda: v3_sweep(V3_BEARING)),
     "room-v3-bearing-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING)),
+    "room-v3-bearing-vs-meta": (
+        "reproduction.md",
+        lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
+    ),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),

@@ -417,6 +417,8 @@ def test_difference_table_pairs_seeds(aggregate):
     assert "| 60 | meta_eps0.3 | 0,1 | +0.150 ± 0.635 (-0.485 to +0.785) |" in table
     assert "fixed_forward |" not in table.split("\n", 2)[2]
     assert aggregate.difference_table([row("fixed_forward", 0, 0.5)]) == ""
+    against_meta = aggregate.difference_table(rows, "meta_eps0.3")  # the other way round: the reference lists the rest
+    assert "| 60 | fixed_forward | 0,1 | -0.150 ± 0.635 (-0.785 to +0.485) |" in against_meta
 
 
 def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
@@ -436,6 +438,9 @@ def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
             aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--doc", str(doc)])
         assert message in capsys.readouterr().err
     assert not (tmp_path / "fig").exists()  # nothing drawn when the table has nowhere to go
+    with pytest.raises(SystemExit):
+        aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--against", "metaa"])
+    assert "--against 'metaa': no runs of that method here" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         load("figures").main(["--seed", "-3", "--out", str(tmp_path)])
     assert "--seed=-3" in capsys.readouterr().err

@@ -267,6 +267,12 @@ def main(argv: list[str] | None = None) -> int:
         help="the document whose table is updated (default: docs/reproduction.md for "
         "fig1/results; for another --results none, the table is only printed)",
     )
+    parser.add_argument(
+        "--against",
+        default="fixed_forward",
+        metavar="METHOD",
+        help="the method whose held-out success the paired differences subtract (default fixed_forward)",
+    )
     args = parser.parse_args(argv)
     committed = args.results.resolve() == RESULTS.resolve()
     figures = args.figures or (ROOT / "docs" / "figures" if committed else args.results)
@@ -279,6 +285,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.ablations:
             rows = with_reference(rows, read_summary(args.results / "summary.csv"))
         check_one_budget(rows)
+        methods = sorted({r["method"] for r in rows})
+        if args.against not in methods:
+            raise ValueError(f"--against {args.against!r}: no runs of that method here; these ran: {methods}")
         table = summary_table(rows)
         marker = "fig1-ablations" if args.ablations else "fig1-summary"
         if doc is not None:
@@ -293,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))
     print(table, end="")
-    differences = difference_table(rows)
+    differences = difference_table(rows, args.against)
     if differences:
         print("\n" + differences, end="")
     if doc is None:
