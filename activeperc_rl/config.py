@@ -66,7 +66,8 @@ class TrainConfig:
     portable: bool = False
     """Pin torch's CPU kernels (ATen's and oneDNN's at AVX2, MKL's on the branch every vendor runs alike) and the
     renderer (Mesa's softpipe, which compiles nothing for the CPU), and take torch's fused Adam step, so that a
-    config and seed train the same run on other x86-64 CPUs with AVX2 (docs/training.md says which were checked)."""
+    config and seed train the same run on other x86-64 CPUs with AVX2 (checked on an AMD EPYC against an emulated
+    Intel Haswell)."""
     collect_workers: int = 0
     """Workers that step each environment's rooms (0: this process steps them); another number of workers
     trains another run."""

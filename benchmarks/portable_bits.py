@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -49,14 +50,17 @@ def train(candidate: str, method: str, out: Path, emulate: str | None = None) ->
 
 
 def table(stored: dict) -> str:
-    """Every candidate's digests (``meta``, ``fixed_forward``) by vendor, and whether the vendors agree."""
+    """Every candidate's digests (``meta``, ``fixed_forward``) by vendor, and whether the vendors agree (digests
+    made with other pins, or stored without them before 2026-12-05, are not compared)."""
     vendors = sorted({vendor for by_vendor in stored.values() for vendor in by_vendor})
     methods = golden.TRAINING_METHODS
     lines = [f"| candidate | {' | '.join(vendors)} | vendors agree |", "|---" * (len(vendors) + 2) + "|"]
     for candidate, by_vendor in stored.items():
         cells = [", ".join(by_vendor[v].get(m, "?") for m in methods) if v in by_vendor else "" for v in vendors]
-        digests = list(by_vendor.values())
+        digests = [{m: entry.get(m) for m in methods} for entry in by_vendor.values()]
+        pins = {json.dumps(entry.get("pins"), sort_keys=True) for entry in by_vendor.values()}
         agree = "one vendor so far" if len(digests) < 2 else "yes" if all(d == digests[0] for d in digests) else "no"
+        agree = "made with other pins" if len(digests) > 1 and len(pins) > 1 else agree
         lines.append(f"| {candidate} | {' | '.join(cells)} | {agree} |")
     return "\n".join(lines)
 
@@ -67,6 +71,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--only", nargs="+", choices=CANDIDATES, default=list(CANDIDATES), help="candidates to train")
     parser.add_argument("--emulate", metavar="CPU", help="train under qemu-x86_64 -cpu CPU (e.g. Haswell-v4)")
     args = parser.parse_args(argv)
+    if args.emulate and not shutil.which("qemu-x86_64"):
+        parser.error("--emulate needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
     if not has_avx2():
         parser.error(f"every candidate pins torch's kernels to AVX2, and this CPU's are {cpu_capability()}")
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
@@ -77,7 +83,7 @@ def main(argv: list[str] | None = None) -> None:
             digests = {
                 m: train(candidate, m, Path(folder) / candidate / m, args.emulate) for m in golden.TRAINING_METHODS
             }
-            stored.setdefault(candidate, {})[vendor] = digests
+            stored.setdefault(candidate, {})[vendor] = digests | {"pins": CANDIDATES[candidate][0]}
             print(f"{candidate}: {digests}", flush=True)
             with atomic_path(RESULTS) as temporary:  # each candidate's digests kept as soon as they are made
                 temporary.write_text(json.dumps(stored, indent=1) + "\n")

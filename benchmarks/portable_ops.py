@@ -19,6 +19,7 @@ import argparse
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 from functools import partial
@@ -161,6 +162,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.digests:
         print(json.dumps({"machine": machine(), "digests": digests()}))
         return
+    if args.emulate and not shutil.which("qemu-x86_64"):
+        parser.error("--emulate needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
     # torch reads the pins when it starts: the digests come from a fresh process, emulated or not
     wrapper = ["qemu-x86_64", "-cpu", args.emulate] if args.emulate else []
     command = [*wrapper, sys.executable, __file__, "--digests"]

@@ -421,7 +421,7 @@ def test_difference_table_pairs_seeds(aggregate):
     assert "| 60 | fixed_forward | 0,1 | -0.150 ± 0.635 (-0.785 to +0.485) |" in against_meta
 
 
-def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
+def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys, monkeypatch):
     with pytest.raises(SystemExit):
         sweep.main(["--seeds", "0", "-1", "--dry-run"])
     assert "--seeds [0, -1]" in capsys.readouterr().err
@@ -438,6 +438,14 @@ def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys):
             aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--doc", str(doc)])
         assert message in capsys.readouterr().err
     assert not (tmp_path / "fig").exists()  # nothing drawn when the table has nowhere to go
+    rows = read_csv(tmp_path / "summary.csv")  # a folder without fixed_forward: no --against, no differences
+    with open(tmp_path / "summary.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(r for r in rows if r["method"] != "fixed_forward")
+    monkeypatch.setattr(aggregate, "plot_curves", lambda rows, curves, out: None)
+    assert aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig")]) == 0
+    assert "minus" not in capsys.readouterr().out
     with pytest.raises(SystemExit):
         aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--against", "metaa"])
     assert "--against 'metaa': no runs of that method here" in capsys.readouterr().err
