@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -71,8 +70,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--only", nargs="+", choices=CANDIDATES, default=list(CANDIDATES), help="candidates to train")
     parser.add_argument("--emulate", metavar="CPU", help="train under qemu-x86_64 -cpu CPU (e.g. Haswell-v4)")
     args = parser.parse_args(argv)
-    if args.emulate and not shutil.which("qemu-x86_64"):
-        parser.error("--emulate needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
+    try:
+        golden.emulated(args.emulate)  # QEMU is there, before any training starts
+    except ValueError as error:
+        parser.error(str(error))
     if not has_avx2():
         parser.error(f"every candidate pins torch's kernels to AVX2, and this CPU's are {cpu_capability()}")
     stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}

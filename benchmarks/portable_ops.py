@@ -19,7 +19,6 @@ import argparse
 import hashlib
 import json
 import os
-import shutil
 import subprocess
 import sys
 from functools import partial
@@ -162,10 +161,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.digests:
         print(json.dumps({"machine": machine(), "digests": digests()}))
         return
-    if args.emulate and not shutil.which("qemu-x86_64"):
-        parser.error("--emulate needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
+    try:
+        wrapper = golden.emulated(args.emulate)
+    except ValueError as error:
+        parser.error(str(error))
     # torch reads the pins when it starts: the digests come from a fresh process, emulated or not
-    wrapper = ["qemu-x86_64", "-cpu", args.emulate] if args.emulate else []
     command = [*wrapper, sys.executable, __file__, "--digests"]
     pins = {name: value for name, value in PINNED_ENVIRONMENT.items() if name != args.without}
     environment = {name: value for name, value in os.environ.items() if name not in PINNED_ENVIRONMENT} | pins

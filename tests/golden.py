@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -41,6 +42,16 @@ PINNED_LAUNCHER = (
 )
 SEEDS = (3, 17, 2024)
 CYCLES = 40
+
+
+def emulated(cpu: str | None) -> list[str]:
+    """The command prefix that runs a process under QEMU's emulated ``cpu`` (none for ``None``); ``ValueError``
+    where QEMU's user mode is not installed."""
+    if cpu is None:
+        return []
+    if not shutil.which("qemu-x86_64"):
+        raise ValueError(f"emulating {cpu} needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
+    return ["qemu-x86_64", "-cpu", cpu]
 
 
 def digest(*arrays) -> str:
@@ -147,8 +158,8 @@ def train_portable(
         launcher = ["-c", PINNED_LAUNCHER.format(*CONVOLUTIONS[convolutions])]
         if not portable_flag:
             flags.remove("--portable")
-    wrapper = ["qemu-x86_64", "-cpu", emulate] if emulate else []  # pinned already: --portable starts no process
-    command = [*wrapper, sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
+    # under emulation the process is pinned already: --portable starts no other (which would run unemulated)
+    command = [*emulated(emulate), sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")

@@ -406,6 +406,11 @@ def test_portable_bits_stores_an_emulated_cpus_digests_under_its_name(tmp_path, 
     assert capsys.readouterr().out.startswith("# emulated Haswell-v4")
     with pytest.raises(ValueError, match="give its pins too"):
         bits.golden.train_portable("meta", tmp_path / "run", emulate="Haswell-v4")
+    assert bits.golden.emulated(None) == []
+    monkeypatch.setattr(bits.golden.shutil, "which", lambda name: None)
+    with pytest.raises(SystemExit):
+        bits.main(["--only", "portable", "--emulate", "Haswell-v4"])
+    assert "emulating Haswell-v4 needs QEMU's user mode" in capsys.readouterr().err
 
 
 def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_differ(tmp_path, monkeypatch, capsys):
