@@ -120,19 +120,13 @@ def _views():
     import numpy as np
     import torch
 
-    from activeperc_env import EnvConfig, Simulator
+    from activeperc_env import EnvConfig
 
+    version = EnvConfig().version
     seen = []
     for fov in (60, 100):
-        sim = Simulator(EnvConfig(fov=fov), num_envs=len(golden.SEEDS), nthread=1)
-        sim.reset(seeds=list(golden.SEEDS))
-        rng = np.random.default_rng(0)
-        for _ in range(5):
-            sim.move(rng.integers(3, size=len(golden.SEEDS)))
-            seen.append(sim.render())
-            sim.look(rng.integers(3, size=len(golden.SEEDS)))
-            seen.append(sim.render())
-        sim.close()
+        for _, _, s_bar, s in golden.seeded_cycles(version, fov, cycles=5, rng_seed=0):
+            seen += [s_bar, s]
     return torch.from_numpy(np.stack(seen))
 
 

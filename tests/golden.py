@@ -62,29 +62,38 @@ def digest(*arrays) -> str:
     return h.hexdigest()[:16]
 
 
-def core_trace(version: int) -> dict[str, list[str]]:
-    """Per FOV, one digest a cycle of three rooms under random moves and looks: both views, the physics state,
-    rewards and ends (and the range readings, where the room has a range sensor)."""
-    out = {}
-    for fov in (60, 100):
-        sim = Simulator(EnvConfig(fov=fov, version=version), num_envs=len(SEEDS), nthread=1)
+def seeded_cycles(version: int, fov: int, cycles: int, rng_seed: int):
+    """The rooms of :data:`SEEDS` under random moves and looks drawn from ``rng_seed``, a room reset when its
+    episode ends: per cycle, the simulator, the move's result and the views before and after the look."""
+    sim = Simulator(EnvConfig(fov=fov, version=version), num_envs=len(SEEDS), nthread=1)
+    try:
         sim.reset(seeds=list(SEEDS))
-        rng = np.random.default_rng(7)
-        rows = []
-        for _ in range(CYCLES):
+        rng = np.random.default_rng(rng_seed)
+        for _ in range(cycles):
             done = sim.done.copy()
             if done.any():
                 sim.reset(np.flatnonzero(done))
             result = sim.move(rng.integers(3, size=len(SEEDS)))
             s_bar = sim.render()
             sim.look(rng.integers(3, size=len(SEEDS)))
+            yield sim, result, s_bar, sim.render()
+    finally:
+        sim.close()
+
+
+def core_trace(version: int) -> dict[str, list[str]]:
+    """Per FOV, one digest a cycle of three rooms under random moves and looks: both views, the physics state,
+    rewards and ends (and the range readings, where the room has a range sensor)."""
+    out = {}
+    for fov in (60, 100):
+        rows = []
+        for sim, result, s_bar, s in seeded_cycles(version, fov, CYCLES, rng_seed=7):
             physics = sim.get_state()["physics"]
-            parts = [s_bar, sim.render(), physics, result.reward, result.terminated, result.truncated]
+            parts = [s_bar, s, physics, result.reward, result.terminated, result.truncated]
             if sim.config.range_rays:
                 parts.append(sim.ranges())
             rows.append(digest(*parts))
         out[f"fov{fov}"] = rows
-        sim.close()
     return out
 
 
