@@ -185,6 +185,7 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
 V3_SWEEP = "experiments/results/v3_best_look"
 V3_FRAME_STACK = "experiments/results/v3_frame_stack"
 V3_BEARING = "experiments/results/v3_bearing"
+V3_BEARING_600K = "experiments/results/v3_bearing_600k"
 
 
 def v3_sweep(folder: str) -> str:
@@ -556,6 +557,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         "reproduction.md",
         lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
     ),
+    "room-v3-bearing-600k": ("reproduction.md", lambda: v3_sweep(V3_BEARING_600K)),
+    "room-v3-bearing-600k-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING_600K)),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),

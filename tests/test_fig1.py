@@ -481,10 +481,15 @@ def test_committed_looker_tables_have_looker_stats_columns(table):
 
 
 def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
-    """The README's numbers of its first command are experiments/results/v3_bearing/summary.csv's (2 digits): seed
-    0's run (the command itself) and the spread over seeds 0-4 of it, of its Fixed_Forward and of their difference."""
-    rows = [r for r in read_csv(ROOT / "experiments" / "results" / "v3_bearing" / "summary.csv") if r["fov"] == "60"]
+    """The README's numbers of its first command are experiments/results/v3_bearing_600k/summary.csv's (2 digits):
+    seed 0's run (the command itself) and the spread over seeds 0-4 of it, of its Fixed_Forward and of their
+    difference."""
+    summary = ROOT / "experiments" / "results" / "v3_bearing_600k" / "summary.csv"
+    rows = [r for r in read_csv(summary) if r["fov"] == "60"]
     readme = (ROOT / "README.md").read_text()
+    settings = json.loads(summary.with_name("sweep.json").read_text())
+    command = readme.split("\n")[3].split("activeperc-train ")[1].split()  # the first command's flags
+    assert command == [*settings["options"], "--frames", str(settings["frames"])]
     success = {}
     for method in ("meta_eps0.3", "fixed_forward"):
         runs = [r for r in rows if r["method"] == method]
@@ -497,6 +502,9 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     assert "| uniformly random | {:.2f} | |".format(float(seed0["random_success_rate"])) in readme
     paired = [m - f for m, f in zip(success["meta_eps0.3"], success["fixed_forward"], strict=True)]
     assert "by {:+.2f} ± {:.2f}".format(*aggregate.mean_ci(paired)) in readme
+    figure1 = read_csv(ROOT / "experiments" / "results" / "v3_bearing" / "summary.csv")
+    minutes = round(sum(float(r["train_minutes"]) for r in figure1))
+    assert f"{len(figure1)} runs, {minutes:,} minutes of training" in " ".join(readme.split())
 
 
 def test_the_seed_by_seed_claims_of_the_docs_hold_in_the_committed_sweeps():
