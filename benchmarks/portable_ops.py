@@ -116,7 +116,7 @@ def _network(convolutions: str, fused: bool | None):
 
 def _views():
     """The views of golden.SEEDS' rooms of the default room at both fields of view over five cycles of seeded
-    random moves and looks (before and after each look)."""
+    random moves and looks (before and after each look; no episode ends in five cycles)."""
     import numpy as np
     import torch
 

@@ -480,16 +480,26 @@ def test_committed_looker_tables_have_looker_stats_columns(table):
     assert rows and list(rows[0]) == list(load("looker_stats").COLUMNS)
 
 
+def paired_spread(aggregate, rows: list[dict], fov: str, method: str, reference: str = "fixed_forward") -> tuple:
+    """Mean and 95 % half-width over seeds of ``method``'s held-out success minus ``reference``'s, same seed."""
+    success = {(r["method"], r["seed"]): float(r["final_success_rate"]) for r in rows if r["fov"] == fov}
+    seeds = sorted(seed for m, seed in success if m == method)
+    return aggregate.mean_ci([success[method, seed] - success[reference, seed] for seed in seeds])
+
+
 def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     """The README's numbers of its first command are experiments/results/v3_bearing_600k/summary.csv's (2 digits):
-    seed 0's run (the command itself) and the spread over seeds 0-4 of it, of its Fixed_Forward and of their
-    difference."""
+    seed 0's run (the command itself, also a row of room_v3.csv) and the spread over seeds 0-4 of it, of its
+    Fixed_Forward and of their difference; the command and the sweep it quotes have that folder's settings."""
     summary = ROOT / "experiments" / "results" / "v3_bearing_600k" / "summary.csv"
     rows = [r for r in read_csv(summary) if r["fov"] == "60"]
     readme = (ROOT / "README.md").read_text()
+    flat = " ".join(readme.split())
     settings = json.loads(summary.with_name("sweep.json").read_text())
-    command = readme.split("\n")[3].split("activeperc-train ")[1].split()  # the first command's flags
-    assert command == [*settings["options"], "--frames", str(settings["frames"])]
+    first = next(line for line in readme.splitlines() if "activeperc-train " in line).split("activeperc-train ")[1]
+    assert first.split() == [*settings["options"], "--frames", str(settings["frames"])]
+    assert f"--frames {settings['frames']}" in flat.split("made by")[1].split("runs/v3_600k")[0]
+    assert f"--results experiments/results/v3_bearing_600k -- {' '.join(settings['options'])}" in flat
     success = {}
     for method in ("meta_eps0.3", "fixed_forward"):
         runs = [r for r in rows if r["method"] == method]
@@ -500,11 +510,34 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     row = "| the first command (`meta`): the learned mover and looker | {:.2f} | {:.2f} ± {:.2f} |"
     assert row.format(float(seed0["final_success_rate"]), *aggregate.mean_ci(success["meta_eps0.3"])) in readme
     assert "| uniformly random | {:.2f} | |".format(float(seed0["random_success_rate"])) in readme
-    paired = [m - f for m, f in zip(success["meta_eps0.3"], success["fixed_forward"], strict=True)]
-    assert "by {:+.2f} ± {:.2f}".format(*aggregate.mean_ci(paired)) in readme
-    figure1 = read_csv(ROOT / "experiments" / "results" / "v3_bearing" / "summary.csv")
-    minutes = round(sum(float(r["train_minutes"]) for r in figure1))
-    assert f"{len(figure1)} runs, {minutes:,} minutes of training" in " ".join(readme.split())
+    printout = next(
+        r
+        for r in read_csv(ROOT / "experiments" / "results" / "room_v3.csv")
+        if r["command"] == f"activeperc-train {first}" and r["seeds"] == "0"
+    )
+    assert float(printout["success"]) == float(seed0["final_success_rate"])
+    assert f"| the same mover, camera held forward | {printout['camera_held']} | |" in readme
+    assert "by {:+.2f} ± {:.2f}".format(*paired_spread(aggregate, rows, "60", "meta_eps0.3")) in readme
+
+
+def test_readme_quotes_figure_1_in_room_v3(aggregate):
+    """The README's numbers of Figure 1 at 1,000,000 frames are experiments/results/v3_bearing/summary.csv's:
+    meta's lead over Fixed_Forward at both fields of view, the baselines at 60 degrees, the runs and their minutes."""
+    rows = read_csv(ROOT / "experiments" / "results" / "v3_bearing" / "summary.csv")
+    flat = " ".join((ROOT / "README.md").read_text().split())
+    lead = "{:+.2f} ± {:.2f} at 60 degrees and {:+.2f} ± {:.2f} at 100".format(
+        *paired_spread(aggregate, rows, "60", "meta_eps0.3"), *paired_spread(aggregate, rows, "100", "meta_eps0.3")
+    )
+    assert lead in flat
+    baselines = [
+        "{:.2f} ± {:.2f}".format(
+            *aggregate.mean_ci([float(r["final_success_rate"]) for r in rows if (r["method"], r["fov"]) == (m, "60")])
+        )
+        for m in ("joint", "ia2c", "curriculum")
+    ]
+    assert "Curriculum baselines reached {}, {} and {} at 60 degrees".format(*baselines) in flat
+    minutes = round(sum(float(r["train_minutes"]) for r in rows))
+    assert f"{len(rows)} runs, {minutes:,} minutes of training" in flat
 
 
 def test_the_seed_by_seed_claims_of_the_docs_hold_in_the_committed_sweeps():
