@@ -480,13 +480,6 @@ def test_committed_looker_tables_have_looker_stats_columns(table):
     assert rows and list(rows[0]) == list(load("looker_stats").COLUMNS)
 
 
-def paired_spread(aggregate, rows: list[dict], fov: str, method: str, reference: str = "fixed_forward") -> tuple:
-    """Mean and 95 % half-width over seeds of ``method``'s held-out success minus ``reference``'s, same seed."""
-    success = {(r["method"], r["seed"]): float(r["final_success_rate"]) for r in rows if r["fov"] == fov}
-    seeds = sorted(seed for m, seed in success if m == method)
-    return aggregate.mean_ci([success[method, seed] - success[reference, seed] for seed in seeds])
-
-
 def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     """The README's numbers of its first command are experiments/results/v3_bearing_600k/summary.csv's (2 digits):
     seed 0's run (the command itself, also a row of room_v3.csv) and the spread over seeds 0-4 of it, of its
@@ -517,7 +510,7 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     )
     assert float(printout["success"]) == float(seed0["final_success_rate"])
     assert f"| the same mover, camera held forward | {printout['camera_held']} | |" in readme
-    assert "by {:+.2f} ± {:.2f}".format(*paired_spread(aggregate, rows, "60", "meta_eps0.3")) in readme
+    assert "by {:+.2f} ± {:.2f}".format(*aggregate.paired_difference(rows, "meta_eps0.3", 60)[1:]) in readme
 
 
 def test_readme_quotes_figure_1_in_room_v3(aggregate):
@@ -526,7 +519,8 @@ def test_readme_quotes_figure_1_in_room_v3(aggregate):
     rows = read_csv(ROOT / "experiments" / "results" / "v3_bearing" / "summary.csv")
     flat = " ".join((ROOT / "README.md").read_text().split())
     lead = "{:+.2f} ± {:.2f} at 60 degrees and {:+.2f} ± {:.2f} at 100".format(
-        *paired_spread(aggregate, rows, "60", "meta_eps0.3"), *paired_spread(aggregate, rows, "100", "meta_eps0.3")
+        *aggregate.paired_difference(rows, "meta_eps0.3", 60)[1:],
+        *aggregate.paired_difference(rows, "meta_eps0.3", 100)[1:],
     )
     assert lead in flat
     baselines = [

@@ -227,16 +227,24 @@ def summary_table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def paired_difference(rows: list[dict], method: str, fov: int, reference: str = "fixed_forward") -> tuple:
+    """The seeds that ``method`` and ``reference`` both ran at ``fov`` (in ``rows``' order), and the mean and 95 %
+    half-width over them of ``method``'s held-out success minus ``reference``'s (no seeds: NaN and NaN)."""
+    success = {(r["method"], int(r["fov"]), int(r["seed"])): float(r["final_success_rate"]) for r in rows}
+    seeds = [s for m, f, s in success if (m, f) == (method, fov) and (reference, fov, s) in success]
+    if not seeds:
+        return seeds, math.nan, math.nan
+    return seeds, *mean_ci([success[method, fov, s] - success[reference, fov, s] for s in seeds])
+
+
 def difference_table(rows: list[dict], reference: str = "fixed_forward") -> str:
     """The Markdown table of each method's held-out success minus ``reference``'s at the same field of view, paired
     by seed: mean and 95 % interval over the seeds both ran (empty when no method shares a seed with it)."""
-    success = {(r["method"], int(r["fov"]), int(r["seed"])): float(r["final_success_rate"]) for r in rows}
     lines = []
-    for (method, fov), runs in sorted(group_runs(rows).items(), key=lambda item: item[0][1]):
-        seeds = [int(r["seed"]) for r in runs if (reference, fov, int(r["seed"])) in success]
+    for method, fov in sorted(group_runs(rows), key=lambda key: key[1]):
+        seeds, mean, half = paired_difference(rows, method, fov, reference)
         if method == reference or not seeds:
             continue
-        mean, half = mean_ci([success[method, fov, s] - success[reference, fov, s] for s in seeds])
         interval = "" if math.isnan(half) else f" ± {half:.3f} ({mean - half:+.3f} to {mean + half:+.3f})"
         lines.append(f"| {fov} | {method} | {','.join(map(str, seeds))} | {mean:+.3f}{interval} |")
     if not lines:
