@@ -44,14 +44,14 @@ SEEDS = (3, 17, 2024)
 CYCLES = 40
 
 
-def emulated(cpu: str | None) -> list[str]:
-    """The command prefix that runs a process under QEMU's emulated ``cpu`` (none for ``None``); ``ValueError``
-    where QEMU's user mode is not installed."""
+def emulated(cpu: str | None, log: Path | None = None) -> list[str]:
+    """The command prefix that runs a process under QEMU's emulated ``cpu`` (none for ``None``), writing to ``log``
+    the code that QEMU translates, if given; ``ValueError`` where QEMU's user mode is not installed."""
     if cpu is None:
         return []
     if not shutil.which("qemu-x86_64"):
         raise ValueError(f"emulating {cpu} needs QEMU's user mode, qemu-x86_64 (apt install qemu-user)")
-    return ["qemu-x86_64", "-cpu", cpu]
+    return ["qemu-x86_64", "-cpu", cpu, *(["-d", "in_asm", "-D", str(log)] if log else [])]
 
 
 def digest(*arrays) -> str:
@@ -150,12 +150,14 @@ def train_portable(
     convolutions: str = "onednn",
     portable_flag: bool = False,
     emulate: str | None = None,
+    emulate_log: Path | None = None,
 ) -> subprocess.CompletedProcess:
     """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
     environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
     pinning to compare: the same run in a process started with those variables, its convolutions in the library
     ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
-    picks torch's fused Adam step). ``emulate`` (with ``pins``) runs it under ``qemu-x86_64 -cpu EMULATE``."""
+    picks torch's fused Adam step). ``emulate`` (with ``pins``) runs it under ``qemu-x86_64 -cpu EMULATE``, which
+    writes the code it translates to ``emulate_log`` if given."""
     if pins is None and (convolutions != "onednn" or portable_flag or emulate):
         raise ValueError("convolutions, portable_flag and emulate choose another pinning: give its pins too")
     if portable_flag and pins != portable.PINNED_ENVIRONMENT:
@@ -168,7 +170,8 @@ def train_portable(
         if not portable_flag:
             flags.remove("--portable")
     # under emulation the process is pinned already: --portable starts no other (which would run unemulated)
-    command = [*emulated(emulate), sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
+    prefix = emulated(emulate, emulate_log)
+    command = [*prefix, sys.executable, *launcher, "--method", method, *flags, "--out", str(out)]
     result = subprocess.run(command, env=environment, capture_output=True, text=True)
     if result.returncode:
         raise RuntimeError(f"{' '.join(command)} failed with status {result.returncode}:\n{result.stderr}")
@@ -185,7 +188,7 @@ def training_trace(out: Path) -> dict:
     with open(out / "metrics.csv", newline="") as file:
         rows = [digest(np.array([row[key] for key in TRAINING_COLUMNS])) for row in csv.DictReader(file)]
     state = torch.load(out / "checkpoint.pt", map_location="cpu", weights_only=False)
-    return {"metrics": rows, "weights": {portable.cpu_vendor(): portable.state_digest(state["method"])}}
+    return {"metrics": rows, "weights": portable.state_digest(state["method"])}
 
 
 def main() -> None:
@@ -197,16 +200,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as folder:
             for method in TRAINING_METHODS:
                 train_portable(method, Path(folder) / method)
-            made = {method: training_trace(Path(folder) / method) for method in TRAINING_METHODS}
-        # the metrics are the same on every CPU; the weights' bits are kept per CPU vendor, this one's replaced, and
-        # other vendors' only while they were made with today's pins
-        old = json.loads(TRAINING.read_text()) if TRAINING.exists() else {}
-        if old.get("pinned") != portable.PINNED_ENVIRONMENT:
-            old = {}
-        stored = {"pinned": portable.PINNED_ENVIRONMENT} | {
-            method: {"metrics": trace["metrics"], "weights": old.get(method, {}).get("weights", {}) | trace["weights"]}
-            for method, trace in made.items()
-        }
+            stored = {"pinned": portable.PINNED_ENVIRONMENT}
+            stored |= {method: training_trace(Path(folder) / method) for method in TRAINING_METHODS}
         path = TRAINING
     else:
         versions = [int(v) for v in sys.argv[1:]] or list(VERSIONS)

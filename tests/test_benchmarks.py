@@ -399,7 +399,7 @@ def test_portable_bits_stores_an_emulated_cpus_digests_under_its_name(tmp_path, 
     bits = load_script("portable_bits")
     monkeypatch.setattr(bits, "RESULTS", tmp_path / "portable_bits.json")
     asked = []
-    monkeypatch.setattr(bits, "train", lambda candidate, method, out, emulate: asked.append(emulate) or "f" * 16)
+    monkeypatch.setattr(bits, "train", lambda candidate, method, out, emulate, log: asked.append(emulate) or "f" * 16)
     bits.main(["--only", "portable", "--emulate", "Haswell-v4"])
     assert set(asked) == {"Haswell-v4"}
     assert set(json.loads((tmp_path / "portable_bits.json").read_text())["portable"]) == {"emulated Haswell-v4"}
@@ -411,6 +411,71 @@ def test_portable_bits_stores_an_emulated_cpus_digests_under_its_name(tmp_path, 
     with pytest.raises(SystemExit):
         bits.main(["--only", "portable", "--emulate", "Haswell-v4"])
     assert "emulating Haswell-v4 needs QEMU's user mode" in capsys.readouterr().err
+
+
+# QEMU's in_asm log as it writes it: a long instruction's last bytes on a line of their own, code translated twice,
+# an instruction cut where QEMU's own disassembler gave up (rcpps: 0f 53 c1), a byte no x86-64 CPU runs (06)
+IN_ASM_LOG = """----------------
+IN:
+0x4010977f20:  0f 52 e0                 rsqrtps  %xmm0, %xmm4
+0x4010977f23:  66 0f 1f 84 00 00 00 00  nopw     (%rax, %rax)
+0x4010977f2b:  00
+0x4010977f2c:  d9 fe                    fsin
+----------------
+IN:
+0x4010977f20:  0f 52 e0                 rsqrtps  %xmm0, %xmm4
+0x4010977f40:  c4 e2 79 b8 c1           vfmadd231ps %xmm1, %xmm0, %xmm0
+----------------
+IN:
+0x7f0000007000:  0f                       .byte    0x0f
+0x7f0000007001:  53 c1                    pushq    %rbx
+0x7f0000007003:  06                       .byte    0x06
+"""
+
+
+def test_portable_bits_census_counts_the_cpu_defined_instructions_by_address(tmp_path, monkeypatch, capsys):
+    """--census files, beside each run's digest, how many distinct addresses of QEMU's translated code hold each
+    instruction whose result the CPU model defines, how many hold any and how many bytes did not disassemble; a
+    rerun of the same runs without it keeps the census; it needs --emulate."""
+    bits = load_script("portable_bits")
+    monkeypatch.setattr(bits, "RESULTS", tmp_path / "portable_bits.json")
+
+    def train(candidate, method, out, emulate, log):
+        log.write_text(IN_ASM_LOG)  # as QEMU does, into a folder that exists before the run
+        return "f" * 16
+
+    monkeypatch.setattr(bits, "train", train)
+    bits.main(["--only", "portable", "--emulate", "Haswell-v4", "--census"])
+    entry = json.loads((tmp_path / "portable_bits.json").read_text())["portable"]["emulated Haswell-v4"]
+    counts = {"translated": 5, "undecoded": 1, "rsqrtps": 1, "fsin": 1, "rcpps": 1}
+    assert entry["census"] == {method: counts for method in bits.golden.TRAINING_METHODS}
+    monkeypatch.setattr(bits, "train", lambda candidate, method, out, emulate, log: "f" * 16)
+    bits.main(["--only", "portable", "--emulate", "Haswell-v4"])  # the same runs again: their census is kept
+    assert json.loads((tmp_path / "portable_bits.json").read_text())["portable"]["emulated Haswell-v4"] == entry
+    with pytest.raises(SystemExit):
+        bits.main(["--only", "portable", "--census"])
+    assert "--census reads QEMU's log of the code it translates: give --emulate CPU too" in capsys.readouterr().err
+    (tmp_path / "empty.log").write_text("qemu-x86_64: warning: TCG doesn't support requested feature\n")
+    with pytest.raises(ValueError, match="holds no code QEMU translated"):
+        bits.census(tmp_path / "empty.log")
+
+
+def test_the_committed_census_is_the_one_training_md_quotes():
+    """Under the emulated Haswell the check's portable runs train the committed weights and reach no CPU-defined
+    instruction in code that disassembled whole, the control reaches rsqrtps, and docs/training.md quotes the counts."""
+    bits = load_script("portable_bits")
+    stored, trained = json.loads(bits.RESULTS.read_text()), json.loads(bits.golden.TRAINING.read_text())
+    portable, control = (stored[c]["emulated Haswell-v4"]["census"] for c in ("portable", "unfused_adam"))
+    assert all(counts["undecoded"] == 0 for counts in (*portable.values(), *control.values()))
+    assert all(set(portable[m]) == {"translated", "undecoded"} for m in bits.golden.TRAINING_METHODS)
+    assert all(set(control[m]) - {"translated", "undecoded"} == {"rsqrtps"} for m in bits.golden.TRAINING_METHODS)
+    for method in bits.golden.TRAINING_METHODS:
+        assert stored["portable"]["emulated Haswell-v4"][method] == trained[method]["weights"]
+    text = " ".join((BENCHMARKS.parent / "docs" / "training.md").read_text().split())
+    reached = " and ".join(f"{n:,}" for n in sorted(portable[m]["translated"] for m in portable))
+    assert f"the check's two portable runs reach {reached} distinct addresses and none of them" in text
+    (rsqrtps,) = {control[m]["rsqrtps"] for m in control}
+    assert f"reaches `rsqrtps` at {rsqrtps} addresses in each run" in text
 
 
 def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_differ(tmp_path, monkeypatch, capsys):
