@@ -23,6 +23,7 @@ Run it from the repository root::
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import re
 import sys
@@ -141,6 +142,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.census and not args.emulate:
         parser.error("--census reads QEMU's log of the code it translates: give --emulate CPU too")
+    if args.census and importlib.util.find_spec("capstone") is None:
+        parser.error("--census disassembles with capstone: pip install capstone (it comes with the dev extra)")
     try:
         golden.emulated(args.emulate)  # QEMU is there, before any training starts
     except ValueError as error:

@@ -455,6 +455,10 @@ def test_portable_bits_census_counts_the_cpu_defined_instructions_by_address(tmp
     with pytest.raises(SystemExit):
         bits.main(["--only", "portable", "--census"])
     assert "--census reads QEMU's log of the code it translates: give --emulate CPU too" in capsys.readouterr().err
+    monkeypatch.setattr(bits.importlib.util, "find_spec", lambda name: None)
+    with pytest.raises(SystemExit):
+        bits.main(["--only", "portable", "--emulate", "Haswell-v4", "--census"])
+    assert "--census disassembles with capstone: pip install capstone" in capsys.readouterr().err
     (tmp_path / "empty.log").write_text("qemu-x86_64: warning: TCG doesn't support requested feature\n")
     with pytest.raises(ValueError, match="holds no code QEMU translated"):
         bits.census(tmp_path / "empty.log")
