@@ -394,10 +394,17 @@ def test_portable_bits_adds_this_vendors_digests_beside_the_others(tmp_path, mon
     assert rows["portable"] == "no" and rows["unfused_adam"] == "made with other pins"
 
 
+def with_qemu(bits, monkeypatch) -> None:
+    """Make portable_bits find qemu-x86_64 without running it: the tests fake the training (and QEMU's log), so they
+    need no emulator (benchmarks/portable_bits.py says how to install one for the real runs)."""
+    monkeypatch.setattr(bits.golden.shutil, "which", lambda name: f"/usr/bin/{name}")
+
+
 def test_portable_bits_stores_an_emulated_cpus_digests_under_its_name(tmp_path, monkeypatch, capsys):
     """--emulate trains under QEMU's CPU (the training is faked here) and files the digests under that CPU's name."""
     bits = load_script("portable_bits")
     monkeypatch.setattr(bits, "RESULTS", tmp_path / "portable_bits.json")
+    with_qemu(bits, monkeypatch)
     asked = []
     monkeypatch.setattr(bits, "train", lambda candidate, method, out, emulate, log: asked.append(emulate) or "f" * 16)
     bits.main(["--only", "portable", "--emulate", "Haswell-v4"])
@@ -439,6 +446,7 @@ def test_portable_bits_census_counts_the_cpu_defined_instructions_by_address(tmp
     rerun of the same runs without it keeps the census; it needs --emulate."""
     bits = load_script("portable_bits")
     monkeypatch.setattr(bits, "RESULTS", tmp_path / "portable_bits.json")
+    with_qemu(bits, monkeypatch)
 
     def train(candidate, method, out, emulate, log):
         log.write_text(IN_ASM_LOG)  # as QEMU does, into a folder that exists before the run
