@@ -1,12 +1,12 @@
 """activeperc_env: the active-perception room of the meta-evaluation paper, for MARL and RL code.
 
 PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
-Gymnasium (registered on import): ``activeperc/Joint-v1``, ``activeperc/FixedForward-v1`` (room v1, the default) and
-their ``-v0`` (room v0); ``gymnasium.make_vec`` steps all their rooms in one batched core (:class:`JointVectorEnv`,
-:class:`FixedForwardVectorEnv`). Scripted movers and lookers: :mod:`activeperc_env.scripted`.
-Batched core for training: :class:`Simulator`. Options of every env: :class:`EnvConfig`. Agent names
-:data:`MOVER` and :data:`LOOKER`; action meanings :data:`MOVER_ACTIONS` (:func:`mover_actions` for
-room v3, whose base slides) and :data:`LOOKER_ACTIONS`.
+Gymnasium (registered on import): ``activeperc/Joint-vK`` and ``activeperc/FixedForward-vK`` for each room ``K``
+(``activeperc/Joint``: the newest, room v3, the default); ``gymnasium.make_vec`` steps all their rooms in one batched
+core (:class:`JointVectorEnv`, :class:`FixedForwardVectorEnv`). Scripted movers and lookers:
+:mod:`activeperc_env.scripted`. Batched core for training: :class:`Simulator`. Options of every env:
+:class:`EnvConfig` (``version`` picks the room: :mod:`activeperc_env.rooms`). Agent names :data:`MOVER` and
+:data:`LOOKER`; action meanings :func:`mover_actions` (by room) and :data:`LOOKER_ACTIONS`.
 Single-agent classes behind the Gymnasium ids: :class:`JointEnv`, :class:`FixedForwardEnv`.
 """
 
@@ -17,11 +17,11 @@ choose_backend()
 import gymnasium  # noqa: E402
 
 from activeperc_env.config import EnvConfig  # noqa: E402
-from activeperc_env.core import LOOKER_ACTIONS, MOVER_ACTIONS, Simulator, mover_actions  # noqa: E402
+from activeperc_env.core import LOOKER_ACTIONS, Simulator  # noqa: E402
 from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
 from activeperc_env.gym_vector import FixedForwardVectorEnv, JointVectorEnv  # noqa: E402
-from activeperc_env.names import VERSIONS  # noqa: E402
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, env, parallel_env, raw_env  # noqa: E402
+from activeperc_env.rooms import ROOMS, mover_actions  # noqa: E402
 
 __all__ = [
     "EnvConfig",
@@ -32,7 +32,6 @@ __all__ = [
     "LOOKER",
     "LOOKER_ACTIONS",
     "MOVER",
-    "MOVER_ACTIONS",
     "Simulator",
     "env",
     "mover_actions",
@@ -41,7 +40,7 @@ __all__ = [
 ]
 
 for _name in ("Joint", "FixedForward"):
-    for _version in VERSIONS:
+    for _version in ROOMS:
         if f"activeperc/{_name}-v{_version}" not in gymnasium.registry:
             gymnasium.register(
                 f"activeperc/{_name}-v{_version}",

@@ -42,15 +42,19 @@ def add_config_flags(group, cls, choices: dict | None = None, skip=()) -> None:
     only what is given (their default is ``argparse.SUPPRESS``). ``choices`` maps field names to their choices."""
     docs = field_docs(cls)
     for f in dataclasses.fields(cls):
-        if f.name in skip:
-            continue
-        flag = "--" + f.name.replace("_", "-")
-        help_text = f"{docs.get(f.name, '')} (default: {shown_default(cls, f, as_flag=True)})".replace("%", "%%")
-        kwargs = {"dest": f.name, "default": argparse.SUPPRESS, "help": help_text}
-        kind = f.type.removesuffix(" | None")
-        if kind == "bool":
-            group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
-        elif kind.startswith("tuple["):
-            group.add_argument(flag, type=PARSERS[kind[6:].split(",")[0]], nargs="+", metavar="N", **kwargs)
-        else:
-            group.add_argument(flag, type=PARSERS[kind], choices=(choices or {}).get(f.name), **kwargs)
+        if f.name not in skip:
+            add_field_flag(group, f, docs.get(f.name, ""), shown_default(cls, f, as_flag=True), choices)
+
+
+def add_field_flag(group, f: dataclasses.Field, doc: str, default: str, choices: dict | None = None) -> None:
+    """The flag of the config field ``f`` in ``group`` (see :func:`add_config_flags`): ``doc`` and ``default`` are
+    what its help says."""
+    flag = "--" + f.name.replace("_", "-")
+    kwargs = {"dest": f.name, "default": argparse.SUPPRESS, "help": f"{doc} (default: {default})".replace("%", "%%")}
+    kind = f.type.removesuffix(" | None")
+    if kind == "bool":
+        group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
+    elif kind.startswith("tuple["):
+        group.add_argument(flag, type=PARSERS[kind[6:].split(",")[0]], nargs="+", metavar="N", **kwargs)
+    else:
+        group.add_argument(flag, type=PARSERS[kind], choices=(choices or {}).get(f.name), **kwargs)

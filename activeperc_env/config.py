@@ -11,23 +11,28 @@ import textwrap
 from dataclasses import dataclass
 from typing import ClassVar
 
-from activeperc_env.names import OCCLUDER_BODIES, PHYSICS_TIMESTEP, VERSIONS
+from activeperc_env.names import OCCLUDER_BODIES
+from activeperc_env.rooms import DEFAULT, LEGACY_DEFAULT, ROOMS, Room
 
 LOOKER_REWARDS = ("shared", "none")
 LAYERS = ("depth", "segmentation")  # the optional image layers of the observation, each an EnvConfig flag
 MAX_RANGE_RAYS = 64
+ROOM_DEFAULTS = tuple(dict.fromkeys(name for room in ROOMS.values() for name in room.defaults))
+"""The options whose default is each room's own (``None`` in :class:`EnvConfig` until it is built)."""
 
 
 def field_docs(cls) -> dict[str, str]:
-    """The docstring written under each field of the dataclass ``cls``, read from its source (Python keeps no
-    attribute docstrings at run time)."""
-    body = ast.parse(textwrap.dedent(inspect.getsource(cls))).body[0].body
+    """The docstring written under each field of the dataclass ``cls`` (or of the dataclass it inherits the field
+    from), read from their source (Python keeps no attribute docstrings at run time)."""
     docs = {}
-    for node, following in zip(body, body[1:], strict=False):
-        is_doc = isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
-        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and is_doc:
-            docs[node.target.id] = " ".join(str(following.value.value).split())
-    return docs
+    for klass in reversed([k for k in cls.__mro__ if dataclasses.is_dataclass(k)]):
+        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0].body
+        for node, following in zip(body, body[1:], strict=False):
+            is_doc = isinstance(following, ast.Expr) and isinstance(following.value, ast.Constant)
+            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and is_doc:
+                docs[node.target.id] = " ".join(str(following.value.value).split())
+    fields = {f.name for f in dataclasses.fields(cls)}
+    return {name: doc for name, doc in docs.items() if name in fields}  # not the class's constants
 
 
 def with_field_docs(cls):
@@ -44,13 +49,11 @@ def with_field_docs(cls):
 
 def shown_default(cls, f: dataclasses.Field, as_flag: bool = False) -> str:
     """The default of field ``f`` of the config class ``cls`` as help texts show it (``repr``, or ``as_flag`` as one
-    would type it: ``16 32``, ``shared``); where it depends on the room's version (``cls.VERSION_DEFAULTS``), each
-    version's: ``30.0 (v1), 90.0 (v0)``."""
-    by_version = getattr(cls, "VERSION_DEFAULTS", {}).get(f.name)
-    if by_version is not None:  # the default room's first, then the others, newest first
-        default = cls.__dataclass_fields__["version"].default
-        order = [default] + [v for v in sorted(by_version, reverse=True) if v != default]
-        return ", ".join(f"{by_version[v]!r} (v{v})" for v in order)
+    would type it: ``16 32``, ``shared``); where it is the room's own (:attr:`activeperc_env.rooms.Room.defaults`),
+    each room's: ``30.0 (v3), 30.0 (v2), ...``, the default room's first."""
+    if f.name in getattr(cls, "PER_ROOM", ()):
+        order = [DEFAULT] + [v for v in sorted(ROOMS, reverse=True) if v != DEFAULT]
+        return ", ".join(f"{ROOMS[v].defaults[f.name]!r} (v{v})" for v in order)
     default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
     if not as_flag:
         return repr(default)
@@ -62,16 +65,12 @@ def shown_default(cls, f: dataclasses.Field, as_flag: bool = False) -> str:
 class EnvConfig:
     """Configuration of the active-perception room; invalid values raise ``ValueError``.
 
-    A field that defaults to ``None`` takes its version's default (:attr:`VERSION_DEFAULTS`) when it is built.
+    A field that defaults to ``None`` takes its room's default (:attr:`activeperc_env.rooms.Room.defaults`) when it
+    is built.
     """
 
-    VERSION_DEFAULTS: ClassVar[dict[str, dict[int, object]]] = {
-        "goal_distance": {0: 3.0, 1: 4.0, 2: 4.0, 3: 4.0},
-        "max_cycles": {0: 150, 1: 90, 2: 90, 3: 90},
-        "turn_speed": {0: 90.0, 1: 30.0, 2: 30.0, 3: 30.0},
-        "range_rays": {0: 0, 1: 13, 2: 13, 3: 13},
-        "heading_spread": {0: 90.0, 1: 90.0, 2: 180.0, 3: 90.0},
-    }
+    PER_ROOM: ClassVar[tuple[str, ...]] = ROOM_DEFAULTS
+    """The fields whose default is each room's own."""
 
     fov: float = 60.0
     """Horizontal field of view of the robot's camera, in degrees (the paper uses 60 and 100)."""
@@ -112,18 +111,18 @@ class EnvConfig:
     (-1 where none is seen)."""
     looker_reward: str = "shared"
     """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
-    version: int = 1
-    """The room's version: 1; 2 (v1 without hints of where the goal lies); 3 (v1's robot sliding without turning,
-    occluders in random places); or 0 (the paper-faithful room of the Figure 1 pilot)."""
+    version: int = DEFAULT
+    """The room (:mod:`activeperc_env.rooms`): 3, where the base slides and never turns, so only the camera sees to
+    the side; 2 and 1, where the base turns; or 0, the paper-faithful room of the Figure 1 pilot."""
 
     def __post_init__(self) -> None:
-        if not (is_int(self.version) and self.version in VERSIONS):  # first: the other defaults depend on it
-            raise ValueError(f"EnvConfig.version={self.version!r} is invalid: expected one of {VERSIONS}")
-        for name, by_version in self.VERSION_DEFAULTS.items():
+        if not (is_int(self.version) and self.version in ROOMS):  # first: the other defaults depend on it
+            raise ValueError(f"EnvConfig.version={self.version!r} is invalid: expected one of {tuple(ROOMS)}")
+        for name, value in ROOMS[int(self.version)].defaults.items():
             if getattr(self, name) is None:
-                object.__setattr__(self, name, by_version[int(self.version)])
+                object.__setattr__(self, name, value)
         normalize_numbers(self)
-        timestep = PHYSICS_TIMESTEP[self.version]
+        timestep = self.room.physics_timestep
         checks = {
             "fov": is_number(self.fov) and 0.0 < self.fov < 180.0,
             "width": is_int(self.width) and 8 <= self.width <= 1024,
@@ -182,6 +181,11 @@ class EnvConfig:
         return cls(**kwargs)
 
     @property
+    def room(self) -> Room:
+        """The record of the room this config builds (:mod:`activeperc_env.rooms`)."""
+        return ROOMS[self.version]
+
+    @property
     def fovy(self) -> float:
         """MuJoCo's vertical field of view (degrees) for the horizontal ``fov`` and the aspect."""
         half = math.radians(self.fov) / 2
@@ -197,12 +201,12 @@ class UnknownOptionError(TypeError, ValueError):
 def saved_room(values: dict) -> dict:
     """The options of a room config as saved (a state, a run): one saved before room v1 existed has no ``version``
     and is of v0's rooms."""
-    return {"version": 0} | values
+    return {"version": LEGACY_DEFAULT} | values
 
 
 def physics_steps(config: EnvConfig) -> int:
     """MuJoCo steps in one control period of ``config`` (the nearest whole number)."""
-    return _steps(config.control_hz, PHYSICS_TIMESTEP[config.version])
+    return _steps(config.control_hz, config.room.physics_timestep)
 
 
 def _steps(control_hz: float, timestep: float) -> int:

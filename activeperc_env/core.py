@@ -26,14 +26,12 @@ from activeperc_env.checks import check_actions, check_seed
 from activeperc_env.config import LAYERS, EnvConfig, is_int, physics_steps, saved_room
 from activeperc_env.layout import sample_layout
 from activeperc_env.render import TiledRenderer
-from activeperc_env.robot import make_base
 from activeperc_env.warp_backend import WarpBatch, WarpRenderer, check_backend
 
-MOVER_ACTIONS = ("turn_left", "turn_right", "forward")
-SLIDING_MOVER_ACTIONS = ("slide_left", "slide_right", "forward")  # the same three moves of v3's base, which never turns
+MOVER_ACTIONS = 3  # the mover's actions in every room: 0 to the left, 1 to the right, 2 forward (the room names them)
 LOOKER_ACTIONS = ("pan_left", "hold", "pan_right")
 HOLD = LOOKER_ACTIONS.index("hold")  # the look that keeps the camera where it is
-JOINT_ACTIONS = len(MOVER_ACTIONS) * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
+JOINT_ACTIONS = MOVER_ACTIONS * len(LOOKER_ACTIONS)  # one agent's joint action a = 3 u_m + u_c
 SUCCESS_DISTANCE = names.GOAL_HALF + names.ROBOT_RADIUS + 0.1
 MAX_ENVS = 2**16  # the most rooms one simulator holds
 STATE_KEYS = ("config", "physics", "cycle", "done", "rngs")  # what every state of get_state holds
@@ -63,19 +61,14 @@ class MoveResult:
         return {"episode_success": bool(self.success[index]), "episode_return": float(self.episode_return[index])}
 
 
-def mover_actions(version: int) -> tuple[str, ...]:
-    """The meanings of the mover's actions 0, 1, 2 in room ``version``: v3's base slides where the others turn."""
-    return SLIDING_MOVER_ACTIONS if version in names.SLIDING_VERSIONS else MOVER_ACTIONS
-
-
 def load_model(config: EnvConfig) -> mujoco.MjModel:
-    """Compile the version's scene, set its camera to the configured field of view and hide the occluders left parked.
+    """Compile the room's scene, set its camera to the configured field of view and hide the occluders left parked.
 
     Occluders beyond ``num_obstacles`` stand far outside the room, beyond every camera's far plane, so no view
     shows them; taking them out of the renderer's scene (a geom group no view draws) leaves every pixel as it
     was and saves their draw calls.
     """
-    model = mujoco.MjModel.from_xml_path(str(names.SCENE_XML[config.version]))
+    model = mujoco.MjModel.from_xml_path(str(config.room.scene))
     eye = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA)
     model.cam_fovy[eye] = config.fovy
     for body in names.OCCLUDER_BODIES[config.num_obstacles :]:
@@ -128,7 +121,7 @@ class Simulator:
         self._ctrl = self._batch.bind("ctrl")
         self._mocap_pos = self._batch.bind("mocap_pos")
         self._ids = _Ids(self.model)
-        self._base = make_base(self.model, self.config)
+        self._base = self.config.room.base(self.model, self.config.forward_speed, self.config.turn_speed)
         self._ray_angles = sensors.ray_angles(self.config.range_rays)
         # the latest range readings of every room, and which are still those of the base's pose (a look leaves them)
         self._ranges = np.zeros((num_envs, self.config.range_rays), dtype=np.float32)
@@ -233,7 +226,7 @@ class Simulator:
                 n_obs,
                 self.config.goal_distance,
                 math.radians(self.config.heading_spread),
-                shuffle=self.config.version >= 2,  # v2's and v3's occluders trade places: no colour marks the way
+                shuffle=self.config.room.shuffle_occluders,
             )
             qpos = self._qpos[i]
             self._base.place(qpos, layout.start_xy, layout.heading)
@@ -272,11 +265,12 @@ class Simulator:
         """The mover's half of a cycle: drive the wheels for one control period.
 
         Args:
-            actions: (n,) ints in {0: turn left, 1: turn right, 2: forward} (v3: 0 slide left, 1 slide right).
+            actions: (n,) ints: 0 to the left, 1 to the right, 2 forward (the room's ``mover_actions``: turns where
+                the base turns, slides where it slides).
             ids: the rooms that move (all when ``None``), distinct and increasing; none of them may be done.
         """
         ids = self._as_ids(ids, changed=True)
-        actions = check_actions(actions, len(ids), len(MOVER_ACTIONS), "mover", mover_actions(self.config.version))
+        actions = check_actions(actions, len(ids), MOVER_ACTIONS, "mover", self.config.room.mover_actions)
         self.require_started("move()", ids)
         if self.done[ids].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")

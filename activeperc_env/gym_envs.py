@@ -7,6 +7,7 @@ import numpy as np
 
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import HOLD, JOINT_ACTIONS, Simulator, split_joint
+from activeperc_env.rooms import with_version_history
 from activeperc_env.spaces import check_action, mover_space, observation_space
 from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
 
@@ -54,8 +55,9 @@ class _SingleAgentEnv(OneRoomRendering, gym.Env):
         raise NotImplementedError
 
 
+@with_version_history
 class JointEnv(_SingleAgentEnv):
-    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c`` (``activeperc/Joint-v1``).
+    """One agent that both moves and looks: ``Discrete(9)``, action ``3 * u_m + u_c`` (``activeperc/Joint-v3``).
 
     Description:
         The paper's Joint baseline (and the Curriculum baseline's agent): the room of
@@ -63,12 +65,12 @@ class JointEnv(_SingleAgentEnv):
         of each cycle. The look is applied after the move.
 
     Action Space:
-        ``Discrete(9)``: ``3 * u_m + u_c`` with ``u_m`` the move (0 turn left, 1 turn right, 2 forward; v3 slides) and
-        ``u_c`` the look (0 pan left, 1 hold, 2 pan right).
+        ``Discrete(9)``: ``3 * u_m + u_c`` with ``u_m`` the move (0 left, 1 right, 2 forward: slides in v3,
+        turns in v0-v2) and ``u_c`` the look (0 pan left, 1 hold, 2 pan right).
 
     Observation Space:
         ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the view after the
-        look and the camera's pan (radians, relative to the heading); in v1 also ``range`` (as in
+        look and the camera's pan (radians, relative to the heading); in v1-v3 also ``range`` (as in
         :class:`~activeperc_env.pettingzoo_env.raw_env`).
 
     Rewards:
@@ -83,14 +85,6 @@ class JointEnv(_SingleAgentEnv):
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
-
-    Version History:
-        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
-        side; occluders in random places (docs/env.md).
-        v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
-        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
-        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
-        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):
@@ -101,15 +95,16 @@ class JointEnv(_SingleAgentEnv):
         return split_joint(check_action("joint agent", action, self.action_space))
 
 
+@with_version_history
 class FixedForwardEnv(_SingleAgentEnv):
-    """The mover alone, its camera fixed forward (``activeperc/FixedForward-v1``).
+    """The mover alone, its camera fixed forward (``activeperc/FixedForward-v3``).
 
     Description:
         The paper's Fixed_Forward baseline: the room of :class:`activeperc_env.pettingzoo_env.raw_env`
         with the looker always holding, so the camera never leaves the robot's heading.
 
     Action Space:
-        ``Discrete(3)``: 0 turn left, 1 turn right, 2 forward (v3: 0 slide left, 1 slide right).
+        ``Discrete(3)``: 0 to the left, 1 to the right, 2 forward (slides in v3, turns in v0-v2).
 
     Observation Space:
         As :class:`JointEnv`'s; ``pan`` is always 0.
@@ -126,14 +121,6 @@ class FixedForwardEnv(_SingleAgentEnv):
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
-
-    Version History:
-        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
-        side; occluders in random places (docs/env.md).
-        v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
-        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
-        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
-        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):

@@ -7,17 +7,14 @@ other half of the contract.
 from pathlib import Path
 
 ASSETS = Path(__file__).parent / "assets"
-VERSIONS = (0, 1, 2, 3)  # the room's versions (EnvConfig.version)
-SLIDING_VERSIONS = (3,)  # the versions whose base slides and never turns (robot.HolonomicBase)
-# each version's scene: v2 and v3 keep v1's robot and room
-SCENE_XML = {0: ASSETS / "scene.xml"} | {v: ASSETS / "scene_v1.xml" for v in (1, 2, 3)}
 
 BASE_BODY = "base"
-# v0's base: a free joint on two driven wheels
+# the wheeled base (robot.WheeledBase): a free joint on two driven wheels
 ROOT_JOINT = "root"
 LEFT_WHEEL = "left_wheel"
 RIGHT_WHEEL = "right_wheel"
-# v1's base: slides along x and y and a yaw hinge, each driven by a velocity servo of the same name with "drive_"
+# the planar bases (robot.PlanarBase, HolonomicBase): slides along x and y and a yaw hinge, each driven by a
+# velocity servo of the same name with "drive_"
 BASE_JOINTS = ("base_x", "base_y", "base_yaw")
 BASE_DRIVES = ("drive_x", "drive_y", "drive_yaw")
 PAN_JOINT = "pan"
@@ -33,7 +30,6 @@ ROBOT_GROUP = 2
 HIDDEN_GROUP = 5
 
 # values that must agree with the XML
-PHYSICS_TIMESTEP = {0: 0.005, 1: 0.02, 2: 0.02, 3: 0.02}  # seconds of one MuJoCo step (<option timestep>), by version
 WHEEL_RADIUS = 0.05
 WHEEL_TRACK = 0.26  # distance between the wheels' contact points
 ROBOT_RADIUS = 0.18  # a circle around the chassis, for layout and success checks

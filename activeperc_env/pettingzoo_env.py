@@ -16,6 +16,7 @@ from pettingzoo.utils import wrappers
 
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import Simulator
+from activeperc_env.rooms import DEFAULT, ROOMS, with_version_history
 from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space, state_space
 from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
 
@@ -27,13 +28,12 @@ class _Adapter(OneRoomRendering):
 
     # not "is_parallelizable": the AEC env's looker observes s_bar (after the move, before its look), so PettingZoo's
     # aec_to_parallel would give a game where the looker acts on another view than the mover; use parallel_env
-    metadata = {"render_modes": RENDER_MODES, "name": "activeperc_v1"}  # each env: its own room's version
+    metadata = {"render_modes": RENDER_MODES, "name": ROOMS[DEFAULT].name}  # each env: its own room's
 
     def _setup(self, render_mode: str | None, config: dict) -> None:
         self._setup_rendering(render_mode)
         self.config = EnvConfig.from_kwargs(**config)
-        name = f"activeperc_v{self.config.version}"
-        self.metadata = {**self.metadata, "name": name, "render_fps": self.config.control_hz}
+        self.metadata = {**self.metadata, "name": self.config.room.name, "render_fps": self.config.control_hz}
         self.sim = Simulator(self.config, num_envs=1, nthread=1)
         self.possible_agents = [MOVER, LOOKER]
         obs_space = observation_space(self.config)
@@ -69,27 +69,29 @@ class _Adapter(OneRoomRendering):
         return agent
 
 
+@with_version_history
 class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
     """The active-perception room as a PettingZoo AEC env.
 
     Description:
-        A differential-drive robot must reach a red box in a room where green, yellow and blue
-        boxes hide it. ``mover_0`` drives the base; ``looker_0`` pans the camera. They act in
-        turns: the mover moves (the wheels run for one control period), then the looker sees
+        A robot must reach a red box in a room where green, yellow and blue boxes hide it.
+        ``mover_0`` drives the base; ``looker_0`` pans the camera. They act in turns: the mover
+        moves (the base is driven for one control period), then the looker sees
         the result and turns the camera (no time passes), then the mover sees that view. For both
         agents acting on the same view use :class:`parallel_env`, not PettingZoo's ``aec_to_parallel``
         of this env (it refuses this env, which does not set ``is_parallelizable``: setting it would
         give a game where the looker acts on another view than the mover).
 
     Action Space:
-        ``mover_0``: ``Discrete(3)`` 0 turn left, 1 turn right, 2 forward (v3: 0 slide left, 1 slide right).
+        ``mover_0``: ``Discrete(3)`` 0 to the left, 1 to the right, 2 forward: slides in the default room
+        (v3), turns in v0-v2 (:func:`activeperc_env.mover_actions`).
         ``looker_0``: ``Discrete(3)`` 0 pan left, 1 hold, 2 pan right (``pan_step`` degrees).
 
     Observation Space:
         ``Dict(image=Box(0, 255, (height, width, 3), uint8), pan=Box(float32, (1,)))``: the
         first-person camera image and the camera's pan angle (radians, relative to the
-        heading); in v1 also ``range=Box(0, range_max, (range_rays,), float32)``, the distances along
-        the range sensor's rays (right to left) to the nearest wall or occluder (never the goal).
+        heading); with a range sensor (v1-v3) also ``range=Box(0, range_max, (range_rays,), float32)``, the
+        distances along the range sensor's rays (right to left) to the nearest wall or occluder (never the goal).
         The looker observes the state after the move, the mover after the look.
 
     Rewards:
@@ -108,14 +110,6 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     Arguments:
         ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
-
-    Version History:
-        v3: v1's room and robot whose base slides left, right or forward and never turns: only the camera sees to the
-        side; occluders in random places (docs/env.md).
-        v2: room v1 without hints of where the goal lies: any start heading, occluders in random places (docs/env.md).
-        v1: the default room: a unicycle base that turns a fifth as fast as the camera pans, a range sensor in the
-        observation (``range``), the start and goal 4 m apart, 90 cycles (docs/env.md).
-        v0: first release, the paper-faithful room (``version=0``).
     """
 
     def __init__(self, render_mode: str | None = None, **config):

@@ -1,9 +1,10 @@
-"""The robot's base in each room version: where it stands, how a reset places it and how a move drives it.
+"""The robot's bases: where one stands, how a reset places it and how a move drives it (each room's record names
+its base: :mod:`activeperc_env.rooms`).
 
-v0 rolls on two driven wheels (a free joint, wheel contacts with the floor, 5-ms physics steps). v1 (and v2) is a
-unicycle: velocity servos on two slides and a yaw hinge, nothing touching the floor, 20-ms steps. Both take the same
-three moves (turn left, turn right, forward) and hold the same camera on a pan hinge. v3 is v1's base whose moves
-slide it left, right or forward, never turning it.
+:class:`WheeledBase` rolls on two driven wheels (a free joint, wheel contacts with the floor). :class:`PlanarBase` is a
+unicycle: velocity servos on two slides and a yaw hinge, nothing touching the floor. Both take the same three moves
+(turn left, turn right, forward) and hold the same camera on a pan hinge. :class:`HolonomicBase` is the planar base
+whose moves slide it left, right or forward, never turning it.
 """
 
 from __future__ import annotations
@@ -14,9 +15,8 @@ import mujoco
 import numpy as np
 
 from activeperc_env import names
-from activeperc_env.config import EnvConfig
 
-FORWARD = 2  # MOVER_ACTIONS.index("forward")
+FORWARD = 2  # the mover's action "forward" in every room
 _SLIDE_ANGLES = np.array([math.pi / 2, -math.pi / 2, 0.0])  # HolonomicBase's direction of each move, from the heading
 
 
@@ -25,13 +25,17 @@ def _address(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
 
 
 class WheeledBase:
-    """v0: a chassis on a free joint, driven by velocity servos on its two wheels."""
+    """A chassis on a free joint, driven by velocity servos on its two wheels (``forward_speed``: the wheels' rim
+    speed in m/s; ``turn_speed``: degrees per second)."""
 
-    def __init__(self, model: mujoco.MjModel, config: EnvConfig):
+    TURNS = True
+    """Whether the moves turn the base."""
+
+    def __init__(self, model: mujoco.MjModel, forward_speed: float, turn_speed: float):
         self.root = int(model.jnt_qposadr[_address(model, mujoco.mjtObj.mjOBJ_JOINT, names.ROOT_JOINT)])
         self.wheels = [_address(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in (names.LEFT_WHEEL, names.RIGHT_WHEEL)]
-        wheel = config.forward_speed / names.WHEEL_RADIUS
-        turn = math.radians(config.turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
+        wheel = forward_speed / names.WHEEL_RADIUS
+        turn = math.radians(turn_speed) * names.WHEEL_TRACK / 2 / names.WHEEL_RADIUS
         # wheel speed targets (left, right) in rad/s, one row per mover action
         self._targets = np.array([[-turn, turn], [turn, -turn], [wheel, wheel]])
 
@@ -57,14 +61,18 @@ class WheeledBase:
 
 
 class PlanarBase:
-    """v1: a base on slides along x and y and a yaw hinge, each driven by a velocity servo (a unicycle)."""
+    """A base on slides along x and y and a yaw hinge, each driven by a velocity servo (a unicycle: ``forward_speed``
+    in m/s, ``turn_speed`` in degrees per second)."""
 
-    def __init__(self, model: mujoco.MjModel, config: EnvConfig):
+    TURNS = True
+    """Whether the moves turn the base."""
+
+    def __init__(self, model: mujoco.MjModel, forward_speed: float, turn_speed: float):
         joints = [_address(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.BASE_JOINTS]
         self.x, self.y, self.yaw = (int(model.jnt_qposadr[j]) for j in joints)
         self.drives = [_address(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in names.BASE_DRIVES]
-        self._speed = config.forward_speed
-        turn = math.radians(config.turn_speed)
+        self._speed = forward_speed
+        turn = math.radians(turn_speed)
         self._yaw_rate = np.array([turn, -turn, 0.0])  # per mover action
 
     def place(self, qpos: np.ndarray, xy: np.ndarray, heading: float) -> None:
@@ -88,8 +96,10 @@ class PlanarBase:
 
 
 class HolonomicBase(PlanarBase):
-    """v3: v1's base, but its moves slide it left, right or forward without turning it: the body keeps its start
-    heading, so only the camera can look to the side."""
+    """The planar base, but its moves slide it left, right or forward without turning it: the body keeps its start
+    heading, so only the camera can look to the side (``turn_speed`` is unused)."""
+
+    TURNS = False
 
     def drive(self, ctrl: np.ndarray, qpos: np.ndarray, actions: np.ndarray) -> None:
         """Write the controls (rows of ``ctrl``) of the moves ``actions``: each drives at the forward speed along the
@@ -98,11 +108,3 @@ class HolonomicBase(PlanarBase):
         ctrl[:, self.drives] = np.stack(
             [self._speed * np.cos(direction), self._speed * np.sin(direction), np.zeros(len(actions))], axis=1
         )
-
-
-BASES = {0: WheeledBase, 1: PlanarBase, 2: PlanarBase} | {v: HolonomicBase for v in names.SLIDING_VERSIONS}
-
-
-def make_base(model: mujoco.MjModel, config: EnvConfig) -> WheeledBase | PlanarBase:
-    """The base of ``config``'s room version, its addresses looked up in ``model``."""
-    return BASES[config.version](model, config)

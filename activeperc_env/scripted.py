@@ -26,7 +26,7 @@ from activeperc_env import names, sensors
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import HOLD, LOOKER_ACTIONS, MOVER_ACTIONS, SUCCESS_DISTANCE, Simulator
 
-TURN_LEFT, TURN_RIGHT, FORWARD = (MOVER_ACTIONS.index(a) for a in ("turn_left", "turn_right", "forward"))
+TURN_LEFT, TURN_RIGHT, FORWARD = range(MOVER_ACTIONS)  # where the base slides: slide left, slide right, forward
 PAN_LEFT, PAN_RIGHT = LOOKER_ACTIONS.index("pan_left"), LOOKER_ACTIONS.index("pan_right")
 # The goal material is rgba (0.9, 0.05, 0.05). Under the scene's lights its pixels measure R in [103, 218] and
 # G, B <= 12; no other material (grey walls, brown floor, green, yellow and blue occluders) comes close to this rule.
@@ -97,12 +97,12 @@ class _Policy:
 def _steer(bearing: np.ndarray, forward_ok: np.ndarray, config: EnvConfig) -> np.ndarray:
     """The move that brings the heading toward ``bearing`` (radians, positive to the left): a turn while it lies
     beyond three quarters of one turn, else forward (where the way is clear; else a turn toward it). A base that
-    slides without turning (v3) slides toward a bearing beyond 45 degrees instead, and sideways where forward is
+    slides without turning slides toward a bearing beyond 45 degrees instead, and sideways where forward is
     blocked."""
-    if config.version in names.SLIDING_VERSIONS:
-        tolerance = math.pi / 4
-    else:
+    if config.room.turns:
         tolerance = 0.75 * math.radians(config.turn_speed) / config.control_hz
+    else:
+        tolerance = math.pi / 4
     action = np.where(bearing > tolerance, TURN_LEFT, np.where(bearing < -tolerance, TURN_RIGHT, FORWARD))
     blocked = (action == FORWARD) & ~forward_ok
     return np.where(blocked, np.where(bearing >= 0, TURN_LEFT, TURN_RIGHT), action)
@@ -250,7 +250,7 @@ class RandomMover(_Policy):
     """Uniformly random moves."""
 
     def _act(self, observation: dict, ids: np.ndarray) -> np.ndarray:
-        return (self._random(ids) * len(MOVER_ACTIONS)).astype(np.int64)
+        return (self._random(ids) * MOVER_ACTIONS).astype(np.int64)
 
 
 class FixedLooker(_Policy):

@@ -49,8 +49,8 @@ def state_space(config: EnvConfig) -> spaces.Box:
 
 
 def mover_space() -> spaces.Discrete:
-    """``Discrete(3)``: 0 turn left, 1 turn right, 2 forward (room v3: 0 slide left, 1 slide right)."""
-    return spaces.Discrete(len(MOVER_ACTIONS))
+    """``Discrete(3)``: 0 to the left, 1 to the right, 2 forward (turns or slides: the room's ``mover_actions``)."""
+    return spaces.Discrete(MOVER_ACTIONS)
 
 
 def looker_space() -> spaces.Discrete:

@@ -45,7 +45,7 @@ def assert_same_run(run_a, run_b, columns=("frames", "iteration", "success_rate"
 
     import torch
 
-    from activeperc_rl.checkpoint import load_checkpoint
+    from activeperc_rl.runtime.checkpoint import load_checkpoint
 
     rows = []
     for run in (run_a, run_b):

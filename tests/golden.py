@@ -22,12 +22,21 @@ import numpy as np
 
 import activeperc_env
 from activeperc_env import EnvConfig, Simulator
-from activeperc_env.names import VERSIONS
-from activeperc_rl import portable
+from activeperc_env.rooms import ROOMS
+from activeperc_rl.runtime import portable
 
 TRACES = Path(__file__).resolve().parent / "golden" / "traces.json"
 TRAINING = TRACES.with_name("training.json")
-TRAINING_METHODS = ("meta", "fixed_forward")
+TRAINING_RUNS = {
+    # the runs of their day (2026-11): the pilot's recipe in room v1, the defaults then
+    "meta": ("meta", ("--preset", "pilot", "--version", "1")),
+    "fixed_forward": ("fixed_forward", ("--preset", "pilot", "--version", "1")),
+    # today's defaults, the recipe that works in the default room (stored from the flags that gave it before)
+    "meta_default": ("meta", ()),
+    "fixed_forward_default": ("fixed_forward", ()),
+}
+"""The golden training runs: their method and the flags they add to :data:`TRAINING_FLAGS`."""
+TRAINING_METHODS = ("meta", "fixed_forward")  # the runs benchmarks/portable_bits.py trains and emulates
 # a few iterations on seed 0, thread counts fixed (they may change rounding), no evaluation
 TRAINING_FLAGS = ("--portable", "--frames", "3072", "--learner-threads", "2", "--torch-threads", "1")
 TRAINING_FLAGS += ("--eval-episodes", "0", "--no-progress")
@@ -144,7 +153,7 @@ def traces(version: int) -> dict:
 
 
 def train_portable(
-    method: str,
+    run: str,
     out: Path,
     pins: dict[str, str] | None = None,
     convolutions: str = "onednn",
@@ -152,8 +161,8 @@ def train_portable(
     emulate: str | None = None,
     emulate_log: Path | None = None,
 ) -> subprocess.CompletedProcess:
-    """``activeperc-train --portable`` of ``method`` (:data:`TRAINING_FLAGS`) into ``out``, in a fresh process whose
-    environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
+    """``activeperc-train --portable`` of the golden ``run`` (:data:`TRAINING_RUNS`) into ``out``, in a fresh process
+    whose environment leaves torch's kernels unpinned, so that the command pins them itself; given ``pins``, another
     pinning to compare: the same run in a process started with those variables, its convolutions in the library
     ``convolutions`` names (:data:`CONVOLUTIONS`), and without ``--portable`` unless ``portable_flag`` (the flag also
     picks torch's fused Adam step). ``emulate`` (with ``pins``) runs it under ``qemu-x86_64 -cpu EMULATE``, which
@@ -163,7 +172,8 @@ def train_portable(
     if portable_flag and pins != portable.PINNED_ENVIRONMENT:
         raise ValueError(f"--portable would restart the run with {portable.PINNED_ENVIRONMENT}, not with {pins}")
     environment = {k: v for k, v in os.environ.items() if k not in portable.PINNED_ENVIRONMENT}
-    launcher, flags = ["-m", "activeperc_rl.cli"], list(TRAINING_FLAGS)
+    method, recipe = TRAINING_RUNS[run]
+    launcher, flags = ["-m", "activeperc_rl.cli"], [*TRAINING_FLAGS, *recipe]
     if pins is not None:
         environment |= pins
         launcher = ["-c", PINNED_LAUNCHER.format(*CONVOLUTIONS[convolutions])]
@@ -198,13 +208,13 @@ def main() -> None:
 
     if sys.argv[1:] == ["training"]:
         with tempfile.TemporaryDirectory() as folder:
-            for method in TRAINING_METHODS:
-                train_portable(method, Path(folder) / method)
+            for run in TRAINING_RUNS:
+                train_portable(run, Path(folder) / run)
             stored = {"pinned": portable.PINNED_ENVIRONMENT}
-            stored |= {method: training_trace(Path(folder) / method) for method in TRAINING_METHODS}
+            stored |= {run: training_trace(Path(folder) / run) for run in TRAINING_RUNS}
         path = TRAINING
     else:
-        versions = [int(v) for v in sys.argv[1:]] or list(VERSIONS)
+        versions = [int(v) for v in sys.argv[1:]] or list(ROOMS)
         stored = json.loads(TRACES.read_text()) if TRACES.exists() else {}
         for version in versions:
             stored[f"v{version}"] = traces(version)

@@ -10,6 +10,7 @@ from conftest import assert_same_view, drive_to_goal, goal_seeking_move
 import activeperc_env
 from activeperc_env import LOOKER, MOVER, EnvConfig, Simulator
 from activeperc_env.config import is_int
+from activeperc_env.rooms import ROOMS
 
 SEED = 7
 CYCLES = 25
@@ -20,15 +21,16 @@ def _actions(n=CYCLES):
     return rng.integers(0, 3, size=(n, 2))
 
 
-def test_same_seed_same_episode_through_every_api():
+@pytest.mark.parametrize("version", ROOMS)
+def test_same_seed_same_episode_through_every_api(version):
     actions = _actions()
-    sim = Simulator(num_envs=3)
+    sim = Simulator(EnvConfig(version=version), num_envs=3)
     sim.reset(seeds=[SEED, SEED + 1, SEED])
-    aec = activeperc_env.env()
+    aec = activeperc_env.env(version=version)
     aec.reset(seed=SEED)
-    par = activeperc_env.parallel_env()
+    par = activeperc_env.parallel_env(version=version)
     par_obs, _ = par.reset(seed=SEED)
-    joint = gymnasium.make("activeperc/Joint-v1")
+    joint = gymnasium.make(f"activeperc/Joint-v{version}")
     joint_obs, _ = joint.reset(seed=SEED)
     first = sim.render()
     for obs in (aec.observe(MOVER), par_obs[MOVER], joint_obs):
@@ -152,7 +154,8 @@ def test_truncation_at_max_cycles_with_zero_reward():
 
 
 def test_a_move_reports_its_episodes_outcome_and_a_reset_clears_it():
-    sim = Simulator(EnvConfig(max_cycles=30, num_obstacles=0, goal_distance=2.5), num_envs=2, nthread=1)
+    room = EnvConfig(max_cycles=30, num_obstacles=0, goal_distance=2.5, version=1)  # a base that turns in place
+    sim = Simulator(room, num_envs=2, nthread=1)
     sim.reset(seeds=[0, 1])
     summed = np.zeros(2)
     while not sim.done.all():  # room 0 drives to the goal, room 1 turns in place until max_cycles

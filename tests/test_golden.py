@@ -17,7 +17,7 @@ import pytest
 from golden import (
     TRACES,
     TRAINING,
-    TRAINING_METHODS,
+    TRAINING_RUNS,
     core_trace,
     parallel_env_trace,
     torchrl_trace,
@@ -25,8 +25,8 @@ from golden import (
     training_trace,
 )
 
-from activeperc_env.names import VERSIONS
-from activeperc_rl import portable
+from activeperc_env.rooms import ROOMS
+from activeperc_rl.runtime import portable
 
 STORED = json.loads(TRACES.read_text())
 
@@ -38,7 +38,7 @@ def first_difference(ours: list[str], stored: list[str]) -> str:
     return f"lengths {len(ours)} and {len(stored)}"
 
 
-@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_core_gives_the_stored_episodes(version):
     ours, stored = core_trace(version), STORED[f"v{version}"]["core"]
     for fov, rows in stored.items():
@@ -52,7 +52,7 @@ OTHER_KERNELS = {"NPY_DISABLE_CPU_FEATURES": "AVX512_SPR AVX512_ICL X86_V4 X86_V
 def test_the_core_gives_the_stored_episodes_with_other_numpy_and_blas_kernels():
     """The episodes do not depend on which SIMD kernels numpy and OpenBLAS picked on this CPU (a layout's heading
     from numpy's AVX-512 arctan2 once differed in its last bit from the same layout's elsewhere)."""
-    code = "import json, golden; print(json.dumps({v: golden.core_trace(v) for v in golden.VERSIONS}))"
+    code = "import json, golden; print(json.dumps({v: golden.core_trace(v) for v in golden.ROOMS}))"
     tests = str(Path(__file__).resolve().parent)
     environment = (
         os.environ
@@ -64,13 +64,13 @@ def test_the_core_gives_the_stored_episodes_with_other_numpy_and_blas_kernels():
         assert ours == STORED[f"v{version}"]["core"], f"v{version} differs with {OTHER_KERNELS}"
 
 
-@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_pettingzoo_gives_the_stored_episodes(version):
     ours, stored = parallel_env_trace(version), STORED[f"v{version}"]["parallel_env"]
     assert ours == stored, f"v{version}: first difference at {first_difference(ours, stored)}"
 
 
-@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_torchrl_env_gives_the_stored_episodes(version):
     ours, stored = torchrl_trace(version), STORED[f"v{version}"]["torchrl"]
     assert ours == stored, f"v{version}: first difference at {first_difference(ours, stored)}"
@@ -82,18 +82,19 @@ needs_avx2 = pytest.mark.skipif(not portable.has_avx2(), reason="portable mode p
 
 @pytest.fixture(scope="module")
 def portable_runs(tmp_path_factory) -> dict[str, Path]:
-    """The run directory of ``activeperc-train --portable`` of each method of the golden training trace."""
+    """The run directory of ``activeperc-train --portable`` of each golden training run."""
     folder = tmp_path_factory.mktemp("portable")
-    for method in TRAINING_METHODS:
-        train_portable(method, folder / method)
-    return {method: folder / method for method in TRAINING_METHODS}
+    for run in TRAINING_RUNS:
+        train_portable(run, folder / run)
+    return {run: folder / run for run in TRAINING_RUNS}
 
 
 @needs_avx2
-@pytest.mark.parametrize("method", TRAINING_METHODS)
-def test_portable_training_gives_the_stored_metrics(portable_runs, method):
-    """The first iterations of seed 0 in portable mode log the committed run's metrics, on Intel and AMD CPUs."""
-    ours, stored = training_trace(portable_runs[method]), TRAINED[method]
+@pytest.mark.parametrize("run", TRAINING_RUNS)
+def test_portable_training_gives_the_stored_metrics(portable_runs, run):
+    """The first iterations of seed 0 in portable mode log the committed run's metrics, on Intel and AMD CPUs. The
+    default recipe's are those the same run gave before it became the defaults (with five flags)."""
+    ours, stored = training_trace(portable_runs[run]), TRAINED[run]
     assert ours["metrics"] == stored["metrics"], (
         f"first difference at {first_difference(ours['metrics'], stored['metrics'])}"
     )
@@ -105,11 +106,11 @@ def test_the_stored_weights_were_trained_with_todays_pins():
 
 
 @needs_avx2
-@pytest.mark.parametrize("method", TRAINING_METHODS)
-def test_portable_training_gives_the_stored_weights(portable_runs, method):
+@pytest.mark.parametrize("run", TRAINING_RUNS)
+def test_portable_training_gives_the_stored_weights(portable_runs, run):
     """Bit for bit the committed networks and optimizers, on every CPU with AVX2 (made on an AMD EPYC; an emulated
     Intel Haswell trains the same bits, executing no instruction whose result the silicon defines)."""
-    ours, stored = training_trace(portable_runs[method])["weights"], TRAINED[method]["weights"]
+    ours, stored = training_trace(portable_runs[run])["weights"], TRAINED[run]["weights"]
     assert ours == stored, f"{portable.machine()} ({portable.cpu_vendor()}) trained {ours}, the stored run {stored}"
 
 

@@ -6,13 +6,23 @@ import pytest
 from conftest import goal_seeking_move
 from gymnasium.utils.env_checker import check_env
 
-import activeperc_env  # noqa: F401  (registers the envs)
+import activeperc_env
+from activeperc_env.rooms import DEFAULT, ROOMS
 
 
-@pytest.mark.parametrize("env_id", ["activeperc/Joint-v1", "activeperc/FixedForward-v1"])
+@pytest.mark.parametrize("env_id", [f"activeperc/{name}-v{v}" for v in ROOMS for name in ("Joint", "FixedForward")])
 def test_check_env(env_id):
     env = gymnasium.make(env_id)
     check_env(env.unwrapped, skip_render_check=False)
+
+
+def test_the_unversioned_ids_give_the_default_room_as_every_other_entry_point():
+    """gymnasium.make without a version takes the newest room, which is the default room of every API."""
+    assert DEFAULT == max(ROOMS)
+    with pytest.warns(UserWarning, match=f"activeperc/Joint-v{DEFAULT}"):
+        joint = gymnasium.make("activeperc/Joint")
+    assert joint.unwrapped.config == activeperc_env.EnvConfig() == activeperc_env.env().unwrapped.config
+    assert activeperc_env.parallel_env().config.version == activeperc_env.Simulator().config.version == DEFAULT
 
 
 def test_joint_action_is_move_times_three_plus_look():

@@ -168,7 +168,7 @@ def test_step_or_render_before_reset_is_refused():
     with pytest.raises(gymnasium.error.ResetNeeded, match="first reset\\(\\) must start every room"):
         vec.reset(options={"reset_mask": np.array([True, False])})
     vec.reset(seed=np.int64(3))  # a numpy int is a seed too
-    reference = activeperc_env.Simulator(num_envs=2)
+    reference = activeperc_env.Simulator(activeperc_env.EnvConfig(version=1), num_envs=2)
     reference.reset(seeds=[3, 4])
     np.testing.assert_array_equal(vec.unwrapped.sim.state(), reference.state())
     vec.close()

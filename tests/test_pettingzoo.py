@@ -1,5 +1,7 @@
 """PettingZoo's own test suite, turn order, rewards and errors of the AEC and parallel envs."""
 
+import functools
+import types
 import warnings
 
 import numpy as np
@@ -18,27 +20,46 @@ from pettingzoo.utils import wrappers
 
 import activeperc_env
 from activeperc_env import LOOKER, MOVER
+from activeperc_env.rooms import ROOMS
 
 
-def test_api_test():
-    api_test(activeperc_env.env(), num_cycles=150)
+@pytest.mark.parametrize("version", ROOMS)
+def test_api_test(version):
+    api_test(activeperc_env.env(version=version), num_cycles=150)
 
 
-def test_parallel_api_test():
-    parallel_api_test(activeperc_env.parallel_env(), num_cycles=150)
+@pytest.mark.parametrize("version", ROOMS)
+def test_parallel_api_test(version):
+    parallel_api_test(activeperc_env.parallel_env(version=version), num_cycles=150)
 
 
-def test_seed_tests():
-    seed_test(activeperc_env.env, num_cycles=60)
-    parallel_seed_test(activeperc_env.parallel_env, num_cycles=60)
+@pytest.mark.parametrize("version", ROOMS)
+def test_seed_tests(version):
+    seed_test(functools.partial(activeperc_env.env, version=version), num_cycles=60)
+    parallel_seed_test(functools.partial(activeperc_env.parallel_env, version=version), num_cycles=60)
 
 
-def test_max_cycles_test():
-    max_cycles_test(activeperc_env)
+@pytest.mark.parametrize("version", ROOMS)
+def test_max_cycles_test(version):
+    room = types.SimpleNamespace(
+        env=functools.partial(activeperc_env.env, version=version),
+        parallel_env=functools.partial(activeperc_env.parallel_env, version=version),
+    )
+    max_cycles_test(room)
 
 
-def test_render_test():
-    render_test(lambda render_mode=None: activeperc_env.env(render_mode=render_mode))
+@pytest.mark.parametrize("version", ROOMS)
+def test_render_test(version):
+    render_test(lambda render_mode=None: activeperc_env.env(render_mode=render_mode, version=version))
+
+
+@pytest.mark.parametrize("version", ROOMS)
+def test_every_env_is_named_after_its_room(version):
+    """The classes' metadata name the default room; each env names its own, as its record does."""
+    assert activeperc_env.raw_env.metadata["name"] == activeperc_env.parallel_env.metadata["name"] == "activeperc_v3"
+    assert activeperc_env.env().metadata["name"] == activeperc_env.parallel_env().metadata["name"] == "activeperc_v3"
+    for make in (activeperc_env.env, activeperc_env.raw_env, activeperc_env.parallel_env):
+        assert make(version=version).metadata["name"] == ROOMS[version].name == f"activeperc_v{version}"
 
 
 def test_env_is_order_enforced_and_agents_alternate():
@@ -210,10 +231,11 @@ def test_observations_are_the_callers_own():
         assert np.array_equal(looker["image"], before) and looker["pan"][0] != 9.0
 
 
-def test_state_test_passes_without_warnings():
+@pytest.mark.parametrize("version", ROOMS)
+def test_state_test_passes_without_warnings(version):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        state_test(activeperc_env.env(), activeperc_env.parallel_env(), num_cycles=150)
+        state_test(activeperc_env.env(version=version), activeperc_env.parallel_env(version=version), num_cycles=150)
 
 
 @pytest.mark.parametrize("num_obstacles", [0, 3, 6])

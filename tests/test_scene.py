@@ -11,20 +11,22 @@ from activeperc_env import layout as layouts
 from activeperc_env.config import EnvConfig
 from activeperc_env.core import load_model
 from activeperc_env.layout import LINE_OFFSET, SIDE_OFFSET, X_JITTER, sample_layout
+from activeperc_env.robot import HolonomicBase, PlanarBase, WheeledBase
+from activeperc_env.rooms import ROOMS
 
 JOINT, ACTUATOR = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_ACTUATOR
-BASE_ELEMENTS = {
-    0: [(JOINT, names.ROOT_JOINT), (ACTUATOR, names.LEFT_WHEEL), (ACTUATOR, names.RIGHT_WHEEL)],
-    1: [(JOINT, j) for j in names.BASE_JOINTS] + [(ACTUATOR, a) for a in names.BASE_DRIVES],
+BASE_ELEMENTS = {  # by the base's class
+    WheeledBase: [(JOINT, names.ROOT_JOINT), (ACTUATOR, names.LEFT_WHEEL), (ACTUATOR, names.RIGHT_WHEEL)],
+    PlanarBase: [(JOINT, j) for j in names.BASE_JOINTS] + [(ACTUATOR, a) for a in names.BASE_DRIVES],
 }
-BASE_ELEMENTS[2] = BASE_ELEMENTS[3] = BASE_ELEMENTS[1]  # v2's and v3's robot is v1's
+BASE_ELEMENTS[HolonomicBase] = BASE_ELEMENTS[PlanarBase]  # the same body, driven otherwise
 
 
-@pytest.mark.parametrize("version", names.VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_every_named_element_exists(version):
     model = load_model(EnvConfig(version=version))
     for obj, name in [
-        *BASE_ELEMENTS[version],
+        *BASE_ELEMENTS[ROOMS[version].base],
         (mujoco.mjtObj.mjOBJ_JOINT, names.PAN_JOINT),
         (mujoco.mjtObj.mjOBJ_ACTUATOR, names.PAN_ACTUATOR),
         (mujoco.mjtObj.mjOBJ_CAMERA, names.EYE_CAMERA),
@@ -35,13 +37,13 @@ def test_every_named_element_exists(version):
         assert mujoco.mj_name2id(model, obj, name) >= 0, name
 
 
-@pytest.mark.parametrize("version", names.VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_physics_timestep_agrees_with_the_xml(version):
-    assert load_model(EnvConfig(version=version)).opt.timestep == names.PHYSICS_TIMESTEP[version]
+    assert load_model(EnvConfig(version=version)).opt.timestep == ROOMS[version].physics_timestep
 
 
 def test_v1s_robot_touches_the_room_with_its_bumper_only():
-    model = load_model(EnvConfig())
+    model = load_model(EnvConfig(version=1))
     robot = {model.body(names.BASE_BODY).id, model.body("pan_link").id}
     colliding = {model.geom(g).name for g in range(model.ngeom) if model.geom_bodyid[g] in robot}
     colliding = {g for g in colliding if model.geom(g).contype or model.geom(g).conaffinity}
@@ -129,7 +131,7 @@ def test_v1_moves_are_smooth_and_repeatable():
     """From rest a move carries the base most of the way (the servos are stiff), every further one exactly a control
     period at the commanded speed, wherever the base stands, with no drift across its heading; a turn after driving
     coasts under 2 cm on."""
-    sim = core.Simulator(EnvConfig(num_obstacles=0), num_envs=4)
+    sim = core.Simulator(EnvConfig(num_obstacles=0, version=1), num_envs=4)
     sim.reset(seeds=np.arange(4))
     for i in range(4):  # away from the walls
         sim._base.place(sim._qpos[i], np.array([-1.0 + 0.5 * i, 0.3 * i]), 0.7 * i)
@@ -202,7 +204,7 @@ def test_the_hardest_config_never_runs_out_of_draws():
     assert (1 - fitted / draws) ** layouts.MAX_TRIES < 1e-12
 
 
-@pytest.mark.parametrize("version", names.VERSIONS)
+@pytest.mark.parametrize("version", ROOMS)
 def test_midphase_off_changes_no_trajectory(monkeypatch, version):
     """The midphase is off, for speed only: with it restored, random driving and looking (into walls and occluders
     too) gives exactly the same states."""

@@ -8,6 +8,7 @@ import pytest
 
 import activeperc_env
 from activeperc_env import EnvConfig, Simulator, names, sensors
+from activeperc_env.rooms import DEFAULT
 from activeperc_env.spaces import observation_space
 
 
@@ -77,7 +78,7 @@ def test_every_api_observes_the_same_ranges():
     sim.reset(seeds=[5])
     par = activeperc_env.parallel_env()
     obs, _ = par.reset(seed=5)
-    joint = gymnasium.make("activeperc/Joint-v1")
+    joint = gymnasium.make(f"activeperc/Joint-v{DEFAULT}")
     joint_obs, _ = joint.reset(seed=5)
     for move, look in [(2, 0), (2, 1), (0, 2), (2, 2)]:
         sim.move([move])

@@ -19,6 +19,7 @@ from torchrl.envs.utils import ExplorationType, check_env_specs, set_exploration
 
 import activeperc_env
 from activeperc_env import EnvConfig
+from activeperc_env.rooms import ROOMS
 from activeperc_rl.envs import ActivePerceptionEnv, make_env
 
 # fast episodes: each move lasts 0.5 s, so a scripted mover reaches the goal in 5-16 cycles
@@ -66,8 +67,10 @@ def replay(actions):
     return policy
 
 
-def test_specs_external_mode():
-    env = make_env(num_envs=4, max_cycles=5)
+@pytest.mark.parametrize("version", ROOMS)
+def test_specs_external_mode(version):
+    env = make_env(num_envs=4, max_cycles=5, version=version)
+    assert env.sim.config.version == version
     assert env.batch_size == (4,)
     assert set(env.action_keys) == {("mover", "action"), ("looker", "action")}
     assert set(env.reward_keys) == {("mover", "reward"), ("looker", "reward")}
@@ -83,8 +86,8 @@ def test_specs_external_mode():
 
 
 def test_a_device_torch_does_not_know_or_see_is_named():
-    from activeperc_rl.config import TrainConfig
     from activeperc_rl.evaluate import evaluate
+    from activeperc_rl.recipe import TrainConfig
 
     bad = ["tpu", 5] + ([] if torch.cuda.is_available() else ["cuda"])
     for device in bad:
@@ -107,8 +110,9 @@ def test_a_bad_look_is_refused_before_the_rooms_move():
     env.close()
 
 
-def test_specs_looker_mode_and_switching():
-    env = make_env(num_envs=4, looker=random_looker(), max_cycles=5)
+@pytest.mark.parametrize("version", ROOMS)
+def test_specs_looker_mode_and_switching(version):
+    env = make_env(num_envs=4, looker=random_looker(), max_cycles=5, version=version)
     assert env.action_keys == [("mover", "action")]
     keys = set(env.observation_spec.keys(True, True))
     assert {("looker", "action"), ("looker", "action_log_prob"), ("looker", "observation", "image")} <= keys
