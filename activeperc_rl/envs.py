@@ -14,9 +14,10 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from activeperc_env import LOOKER_ACTIONS, MOVER_ACTIONS, EnvConfig, Simulator
+from activeperc_env import LOOKER_ACTIONS, EnvConfig, Simulator
 from activeperc_env.checks import check_actions
 from activeperc_env.config import is_int
+from activeperc_env.core import MOVER_ACTIONS
 from activeperc_env.spaces import MAX_GEOM_ID
 
 MOVER, LOOKER = "mover", "looker"
@@ -190,8 +191,8 @@ class ActivePerceptionEnv(EnvBase):
         )
 
     def _action_spec(self, agent: str) -> Composite:
-        meanings = MOVER_ACTIONS if agent == MOVER else LOOKER_ACTIONS
-        action = Categorical(len(meanings), self.batch_size, dtype=torch.int64, device=self.device)
+        actions = MOVER_ACTIONS if agent == MOVER else len(LOOKER_ACTIONS)
+        action = Categorical(actions, self.batch_size, dtype=torch.int64, device=self.device)
         return Composite(action=action, shape=self.batch_size, device=self.device)
 
     def _update_specs(self) -> None:

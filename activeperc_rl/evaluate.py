@@ -21,13 +21,14 @@ from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.checks import check_seed
 from activeperc_env.config import is_int
 from activeperc_env.render import side_by_side
-from activeperc_rl import portable
-from activeperc_rl.atomic import atomic_path, check_writable
-from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, restore_method
-from activeperc_rl.config import DEVICES, TrainConfig
+from activeperc_rl.config import DEVICES
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
-from activeperc_rl.signals import stop_raises_interrupt
+from activeperc_rl.recipe import TrainConfig, make_method
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.atomic import atomic_path, check_writable
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restore_method
+from activeperc_rl.runtime.signals import stop_raises_interrupt
 
 MAX_ROOMS = 16
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -63,7 +64,7 @@ def evaluate(
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
     """
     if not isinstance(config, TrainConfig):
-        raise TypeError(f"config={config!r} is invalid: expected a TrainConfig (TrainConfig.from_dict(mapping))")
+        raise TypeError(f"config={config!r} is invalid: expected a TrainConfig (TrainConfig.from_options(...))")
     if mover_policy is None and looker is not None:
         raise ValueError("a looker was given without a mover_policy (None plays random movers and lookers)")
     for name, module in (("mover_policy", mover_policy), ("looker", looker)):
@@ -89,8 +90,8 @@ def evaluate(
         looker=looker,
         seed=seed,
         split="eval",
-        backend=config.backend,
-        frame_stack=config.frame_stack,
+        backend=config.run.backend,
+        frame_stack=config.network.frame_stack,
         config=config.env,
     )
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)
@@ -148,8 +149,6 @@ def load_policy(path: str | Path, device="cpu"):
 
     Raises ``ValueError`` naming the path when it is neither, or when the checkpoint is unusable.
     """
-    from activeperc_rl.methods import make_method
-
     path = Path(path)
     file = path / CHECKPOINT if path.is_dir() else path
     if not path.exists():
@@ -207,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
             device = torch_device(args.device)
             config, mover_policy, looker = load_policy(args.run, device)
-            if config.portable and argv is None:
+            if config.run.portable and argv is None:
                 portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too
             if args.random:
                 mover_policy, looker = None, None

@@ -1,8 +1,8 @@
-"""The training methods: the paper's meta-evaluation and its four baselines, one iteration each.
+"""The training methods: the paper's meta-evaluation and its four baselines, each with its options beside it.
 
-Every method owns its networks, optimizers, environments and collectors, and exposes
-:meth:`Method.iterate` (collect, then update) plus what a checkpoint and an evaluation need.
-The mover is always trained by A2C (TorchRL's ``A2CLoss`` with GAE) on its own rollouts.
+Every method owns its networks, optimizers, environments and collectors (:class:`~activeperc_rl.method_base.Method`),
+and one iteration of it (:meth:`iterate`) collects rollouts, then updates. The mover is always trained by A2C
+(TorchRL's ``A2CLoss`` with GAE) on its own rollouts.
 
 ========================  ===========================================================================
 method                    what runs in the mover's loop, and what learns
@@ -13,28 +13,28 @@ method                    what runs in the mover's loop, and what learns
 ``ia2c``                  a looker trained by its own A2C on the shared reward, acting on ``s_bar``
 ``curriculum``            ``joint``, pre-trained without obstacles for a fraction of the frames
 ========================  ===========================================================================
+
+A method's options are a section of the training config named after it (``meta:`` in YAML; ``--epsilon`` and the
+other flags of its group on the command line).
 """
 
 from __future__ import annotations
 
 import copy
-import dataclasses
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import TensorDictSequential
 from torch import nn
-from torchrl.objectives import A2CLoss, ValueEstimators
 
-from activeperc_env.core import JOINT_ACTIONS, usable_cpus
-from activeperc_rl.collection import Rollouts
+from activeperc_env.config import is_number, with_field_docs
+from activeperc_env.core import JOINT_ACTIONS
+from activeperc_rl.config import Section, finite
 from activeperc_rl.envs import LOOKER, MOVER
-from activeperc_rl.losses import VIEW_CREDITS, JointA2CLoss, MetaEvaluationLoss
+from activeperc_rl.losses import LOOKER_CREDITS, VIEW_CREDITS, MetaEvaluationLoss
+from activeperc_rl.method_base import Iteration, Method
 from activeperc_rl.models import (
     HOLD,
     JOINT,
@@ -42,247 +42,204 @@ from activeperc_rl.models import (
     EpsilonGreedyLooker,
     FixedLooker,
     make_actor,
-    make_critic,
-    make_encoder,
     make_joint_policy,
     start_holding,
 )
 
-if TYPE_CHECKING:  # the config names the methods (METHODS), so it imports this module
-    from activeperc_rl.config import TrainConfig
+MOVER_ROLLOUTS = ("d1", "all")
+E1_LOOKS = ("greedy", "sample")
+OPTIMIZERS = ("adam", "sgd")
 
 
-@dataclass
-class Iteration:
-    """What one training iteration did."""
+@with_field_docs
+@dataclass(frozen=True)
+class LookerOptions(Section):
+    """The options of every method with a learned look: its entropy bonus and how an untrained one looks."""
 
-    frames: int
-    """Environment cycles stepped, over every room of every environment."""
-    returns: list[float] = field(default_factory=list)
-    """Returns of the episodes that ended in the rollouts that measure the deployed policy."""
-    successes: list[bool] = field(default_factory=list)
-    """Whether each of those episodes reached the goal (in the order of :attr:`returns`)."""
-    losses: dict[str, float] = field(default_factory=dict)
-    """Scalar losses and diagnostics of the updates."""
+    looker_entropy_coeff: float = 0.0
+    """Weight of the entropy bonus in the looker's loss (phi2's REINFORCE, the IA2C looker's A2C; the joint
+    agent's look, given its move)."""
+    looker_hold_prob: float = 0.95
+    """Probability that an untrained looker holds the camera (phi1 and phi2, the IA2C looker, the joint agent's
+    look); 1/3 makes every look equally likely."""
 
-
-class Method:
-    """Base of the training methods: builds the mover's A2C; subclasses add the looker's part.
-
-    Args:
-        config: the training configuration.
-        device: where the networks run.
-    """
-
-    name: str
-    """The method's name in configs and on the command line (``--method``)."""
-    READS: tuple[str, ...] = ()
-    """The :class:`TrainConfig` options this method reads beyond those every method reads."""
-    LOGGED: dict[str, str] = {}
-    """The entries of :attr:`Iteration.losses` that ``metrics.csv`` holds too, and their columns there (nan where an
-    iteration has no such entry)."""
-
-    def __init__(self, config: TrainConfig, device: torch.device):
-        self.config = config
-        self.device = device
-        self.env_seed = config.seed
-        self.collectors: list[Rollouts] = []
-        self.modules: dict[str, nn.Module] = {}
-        self.optimizers: dict[str, torch.optim.Optimizer] = {}
-
-    # ---------------------------------------------------------------- construction helpers
-    def _encoder(self, bearing: bool = True):
-        """A fresh encoder (``bearing``: with the mover's bearing layout), built on the CPU (the same initial weights
-        on every device); the networks around it move to the device."""
-        cfg = self.config
-        bins = cfg.bearing_bins if bearing else 0
-        return make_encoder(cfg.env, cfg.channels, cfg.hidden_size, bins, cfg.frame_stack)
-
-    def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
-        """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``)."""
-        cfg, owner = self.config, action_agent or agent
-        common = dict(critic_coeff=cfg.critic_coeff, loss_critic_type="l2", functional=False)
-        if owner == JOINT:  # the move's entropy bonus and the look's apart, as the other methods weigh them
-            loss = JointA2CLoss(
-                actor, critic, entropy_coeff=cfg.entropy_coeff, look_entropy_coeff=cfg.looker_entropy_coeff, **common
-            )
-        else:
-            coeff = cfg.looker_entropy_coeff if owner == LOOKER else cfg.entropy_coeff
-            loss = A2CLoss(actor, critic, entropy_coeff=coeff, **common)
-        loss.set_keys(
-            reward=(agent, "reward"),
-            action=(owner, "action"),
-            sample_log_prob=(owner, "action_log_prob"),
-            value="state_value",
-        )
-        loss.make_value_estimator(ValueEstimators.GAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
-        return loss
-
-    def _actor_critic(
-        self, name: str, agent: str, lr: float, action_agent: str | None = None, num_actions: int = NUM_ACTIONS
-    ):
-        """An actor and a critic on ``agent``'s view sharing one encoder, their A2C loss, and optimizer ``name``.
-
-        The networks are registered as ``{name}_actor`` and ``{name}_critic``; the actor's action lies
-        under ``action_agent`` (default: ``agent``).
-        """
-        encoder = self._encoder(bearing=agent == MOVER)
-        actor = make_actor(encoder, self.config.hidden_size, action_agent or agent, num_actions, reads=agent)
-        critic = make_critic(encoder, self.config.hidden_size, agent)
-        actor.to(self.device)
-        critic.to(self.device)
-        loss = self._a2c(actor, critic, agent, action_agent)
-        self.modules.update({f"{name}_actor": actor, f"{name}_critic": critic})
-        self._optimizer(name, [actor, critic], lr)
-        return actor, critic, loss
-
-    def _collector(
-        self,
-        policy,
-        looker=None,
-        seed_offset: int = 0,
-        name: str = "collector",
-        room: dict | None = None,
-        look_views: bool = False,
-    ) -> Rollouts:
-        """Rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), collected in this process
-        or by ``collect_workers`` workers (``name``: what their error messages call them), in the configured room
-        with the options in ``room`` changed."""
-        cfg = self.config
-        # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
-        entropy = [self.env_seed, len(self.collectors)]
-        collector = Rollouts(
-            policy,
-            looker,
-            dataclasses.replace(cfg.env, **(room or {})),
-            cfg.num_envs,
-            cfg.rollout_length,
-            env_seed=self.env_seed + seed_offset,
-            torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),
-            workers=cfg.collect_workers,
-            collector=cfg.collector,
-            backend=cfg.backend,
-            ray_address=cfg.ray_address,
-            device=self.device,
-            name=name,
-            look_views=look_views,
-            frame_stack=cfg.frame_stack,
-        )
-        self.collectors.append(collector)
-        return collector
-
-    def _next(self, collector: Rollouts) -> TensorDictBase:
-        """The next rollout of ``collector``, shape ``[num_envs, rollout_length]``."""
-        return next(collector)
-
-    def _optimizer(self, name: str, modules: list[nn.Module], lr: float, kind: str = "adam") -> None:
-        params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
-        if kind == "sgd":
-            self.optimizers[name] = torch.optim.SGD(params, lr=lr)
-        else:
-            # portable: torch's fused step, whose square root rounds alike on every CPU (the unfused step's is MKL's)
-            fused = True if self.config.portable else None
-            self.optimizers[name] = torch.optim.Adam(params, lr=lr, eps=1e-5, fused=fused)
-
-    def _step(self, name: str, loss: nn.Module, *inputs: TensorDictBase) -> dict[str, float]:
-        """One step of optimizer ``name`` on the sum of the ``loss_*`` entries of ``loss(*inputs)``.
-
-        Returns the loss's scalar entries as floats. The loss and its gradients run on ``learner_threads``
-        CPU threads (the environments wait meanwhile).
-        """
-        with torch_threads(self.config.learner_threads or usable_cpus()):
-            losses = loss(*inputs)
-            total = sum(v for k, v in losses.items() if k.startswith("loss_"))
-            optimizer = self.optimizers[name]
-            optimizer.zero_grad(set_to_none=True)
-            total.backward()
-            params = [p for group in optimizer.param_groups for p in group["params"]]
-            torch.nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)
-            optimizer.step()
-        return {f"{name}/{k}": float(v.detach()) for k, v in losses.items() if v.numel() == 1}
-
-    # ---------------------------------------------------------------- interface
-    def start(self) -> None:
-        """Build the environments and collectors."""
-        raise NotImplementedError
-
-    def iterate(self) -> Iteration:
-        """Collect rollouts and update the networks once."""
-        raise NotImplementedError
-
-    def policy(self):
-        """The deployed policy for evaluation: ``(mover_policy, looker_module_or_None)``.
-
-        With a looker module, the env runs it inside the cycle (looker mode); without one the
-        mover policy writes both agents' actions (external mode, the joint agent).
-        """
-        raise NotImplementedError
-
-    def non_finite(self) -> str | None:
-        """The name of the first network with a weight that is NaN or infinite (the learning diverged), or ``None``."""
-        for name, module in self.modules.items():
-            if not all(torch.isfinite(p).all() for p in module.parameters()):
-                return name
-        return None
-
-    def state_dict(self) -> dict:
-        """Networks, optimizers and the method's own counters."""
+    def checks(self) -> dict[str, tuple[bool, str]]:
+        """Each field's check."""
         return {
-            "modules": {k: m.state_dict() for k, m in self.modules.items()},
-            "optimizers": {k: o.state_dict() for k, o in self.optimizers.items()},
+            "looker_entropy_coeff": (
+                finite(self.looker_entropy_coeff) and self.looker_entropy_coeff >= 0,
+                "a finite number >= 0",
+            ),
+            "looker_hold_prob": (
+                is_number(self.looker_hold_prob) and 0.0 < self.looker_hold_prob < 1.0,
+                "a probability in (0, 1)",
+            ),
         }
 
-    def load_state_dict(self, state: dict) -> None:
-        """Restore what :meth:`state_dict` returned; ``ValueError`` when it does not fit these networks."""
-        if not isinstance(state, dict) or not all(isinstance(state.get(k), dict) for k in ("modules", "optimizers")):
-            raise ValueError("it holds no networks and optimizers")
-        missing = sorted(set(self.modules) ^ set(state["modules"]))
-        if missing:
-            raise ValueError(f"its networks {sorted(state['modules'])} do not match {sorted(self.modules)}")
-        try:
-            for k, module in self.modules.items():
-                module.load_state_dict(state["modules"][k])
-            for k, optimizer in self.optimizers.items():
-                optimizer.load_state_dict(state["optimizers"][k])
-                for group in optimizer.param_groups:  # the step the config asks for, not the saved one's
-                    if "fused" in group:
-                        group["fused"] = optimizer.defaults["fused"]
-        except (RuntimeError, ValueError, KeyError) as error:  # shapes or parameter groups of other networks
-            lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-            raise ValueError(f"its {k!r} does not fit the config: {' '.join(lines[:2])}") from error
 
-    def collection_state(self) -> list[dict]:
-        """Where each collector's rooms stand between two rollouts (:meth:`Rollouts.state`): with
-        :meth:`load_collection_state` after :meth:`start`, a resumed run with as many workers collects exactly what
-        the uninterrupted run would have."""
-        return [collector.state() for collector in self.collectors]
-
-    def load_collection_state(self, states: list[dict]) -> None:
-        """Put the collectors where :meth:`collection_state` left them; ``ValueError`` when they do not fit."""
-        if len(states) != len(self.collectors):
-            raise ValueError(f"its {len(states)} collectors' state does not fit this run's {len(self.collectors)}")
-        try:
-            for collector, state in zip(self.collectors, states, strict=True):
-                collector.load_state(state)
-        except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
-            raise ValueError(f"its collectors' state does not fit this run: {error}") from error
-
-    def close(self) -> None:
-        """Shut the collectors and their environments down."""
-        for collector in self.collectors:
-            collector.shutdown()
-        self.collectors.clear()
+def positive_rate(value) -> tuple[bool, str]:
+    """The check of a learning rate."""
+    return finite(value) and value > 0, "a finite number > 0"
 
 
 class _MoverA2C(Method):
     """The mover's actor and critic w1 (one shared encoder) and their A2C loss."""
 
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
-        self.actor, self.critic, self.mover_loss = self._actor_critic("mover", MOVER, config.lr)
+    def __init__(self, options: Section, **parts):
+        super().__init__(options, **parts)
+        self.actor, self.critic, self.mover_loss = self._actor_critic("mover", MOVER, self.a2c.lr)
 
     def _update_mover(self, rollout: TensorDictBase) -> dict[str, float]:
         return self._step("mover", self.mover_loss, rollout)
+
+
+@with_field_docs
+@dataclass(frozen=True)
+class MetaConfig(LookerOptions):
+    """The options of meta-evaluation (``--method meta``): the paper's epsilon and alpha, and the choices it left
+    open (docs/training.md, "Choices the paper left open")."""
+
+    NAME = "meta"
+
+    epsilon: float = 0.3
+    """Probability of a uniformly random look in E2 (otherwise argmax of phi2); the paper uses 0.1 and 0.3."""
+    alpha: float = 0.05
+    """Soft-update rate, phi1 <- alpha phi2 + (1 - alpha) phi1 (the paper's 0.05)."""
+    looker_credit: str = "best_look"
+    """What each look of D2 is credited with: 'best_look' (phi2 learns which look's view the mover's critic values
+    most), 'trajectory' (the paper: its trajectory's meta-evaluator), 'look' (the value the look added,
+    V(s') - V(s_bar)) or 'every_look' (expected over the three looks' values)."""
+    looker_lr: float = 3e-4
+    """Adam learning rate of phi2 (the paper's preset: 3e-5)."""
+    looker_optimizer: str = "adam"
+    """phi2's optimizer, 'adam' or 'sgd' (whose steps grow with the meta-evaluator's size)."""
+    shared_seeds: bool = True
+    """E1 and E2 get the same layout streams (room i's k-th episode is the same layout in both)."""
+    resample_d1: bool = True
+    """Sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per iteration); False
+    reuses the first D1 (2 rollouts per iteration)."""
+    mover_rollouts: str = "all"
+    """What the mover learns from: 'all' (the first D1 and D2, then the D1 sampled after the soft update) or 'd1'
+    (the paper: that D1 only)."""
+    e1_looks: str = "greedy"
+    """How phi1 picks its looks in E1 and at test time: 'greedy' (its argmax) or 'sample' (drawn from its
+    distribution)."""
+    looker_importance_weights: bool = False
+    """Weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it (the paper
+    does not)."""
+
+    def checks(self) -> dict[str, tuple[bool, str]]:
+        """Each field's check."""
+        return super().checks() | {
+            "epsilon": (is_number(self.epsilon) and 0.0 <= self.epsilon <= 1.0, "a probability in [0, 1]"),
+            "alpha": (is_number(self.alpha) and 0.0 < self.alpha <= 1.0, "a number in (0, 1]"),
+            "looker_credit": (self.looker_credit in LOOKER_CREDITS, f"one of {LOOKER_CREDITS}"),
+            "looker_lr": positive_rate(self.looker_lr),
+            "looker_optimizer": (self.looker_optimizer in OPTIMIZERS, f"one of {OPTIMIZERS}"),
+            "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
+            "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
+            "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
+            "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
+            "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
+        }
+
+
+class Meta(_MoverA2C):
+    """The paper's meta-evaluation (section 3), one iteration (docs/training.md, "The algorithm in code").
+
+    1. roll the mover out with phi1 in E1 (D1) and with epsilon-greedy phi2 in E2 (D2);
+    2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);
+    3. REINFORCE step on phi2 with V(tau_k) in place of the return (``looker_credit``: what each look is credited
+       with; the default, ``best_look``, credits the look whose view the critic values most);
+    4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
+    5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it
+       (``mover_rollouts='all'``: first one on the first D1 and D2 together);
+    6. copy w1 -> w2.
+    """
+
+    Options = MetaConfig
+    LOGGED = {
+        "looker/meta_value": "meta_value",
+        "looker/meta_value_std": "meta_value_std",
+        "looker/baseline": "meta_baseline",
+        "looker/entropy": "looker_entropy",
+        "meta/e1_pan_rate": "e1_pan_rate",
+        "meta/e2_pan_rate": "e2_pan_rate",
+        "meta/e2_success_rate": "e2_success_rate",
+        "looker/best_look_agreement": "best_look_agreement",
+        "looker/best_look_left": "best_look_left",
+        "looker/best_look_right": "best_look_right",
+    }
+
+    def __init__(self, options: MetaConfig, **parts):
+        super().__init__(options, **parts)
+        self.phi2 = make_actor(self._encoder(bearing=False), self.network.hidden_size, LOOKER).to(self.device)
+        start_holding(self.phi2, options.looker_hold_prob)
+        self.phi1 = copy.deepcopy(self.phi2)
+        self.phi1.requires_grad_(False)
+        # E1's looker: phi1's argmax ('greedy') or phi1 itself, which samples ('sample')
+        self.e1_looker = EpsilonGreedyLooker(self.phi1, 0.0) if options.e1_looks == "greedy" else self.phi1
+        self.w2 = copy.deepcopy(self.critic)
+        self.w2.requires_grad_(False)
+        self.meta_loss = MetaEvaluationLoss(
+            self.phi2,
+            self.w2,
+            self.critic,
+            entropy_coeff=options.looker_entropy_coeff,
+            behaviour_epsilon=options.epsilon if options.looker_importance_weights else None,
+            credit=options.looker_credit,
+        )
+        self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
+        self._optimizer("looker", [self.phi2], options.looker_lr, options.looker_optimizer)
+
+    def start(self) -> None:
+        """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
+        e2_seed_offset = 0 if self.options.shared_seeds else 1
+        self.e1 = self._collector(self.actor, looker=self.e1_looker, name="E1's collector")
+        self.e2 = self._collector(
+            self.actor,
+            looker=EpsilonGreedyLooker(self.phi2, self.options.epsilon),
+            seed_offset=e2_seed_offset,
+            name="E2's collector",
+            look_views=self.options.looker_credit in VIEW_CREDITS,
+        )
+
+    def iterate(self) -> Iteration:
+        """Steps 1 to 6 of the class docstring."""
+        options = self.options
+        d1, d2 = self._next(self.e1), self._next(self.e2)
+        frames, (returns, successes) = d1.numel() + d2.numel(), finished_episodes(d1)
+        losses = self._step("looker", self.meta_loss, d2, d1)
+        soft_update(self.phi1, self.phi2, options.alpha)
+        if options.mover_rollouts == "all":
+            both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
+            first = self._update_mover(both)  # logged apart from the D1 step's losses, which would overwrite them
+            losses |= {key.replace("mover/", "mover_d1_d2/", 1): value for key, value in first.items()}
+        if options.resample_d1:
+            d1 = self._next(self.e1)
+            frames += d1.numel()
+            more_returns, more_successes = finished_episodes(d1)
+            returns, successes = returns + more_returns, successes + more_successes
+        if options.resample_d1 or options.mover_rollouts == "d1":
+            losses |= self._update_mover(d1)
+        self.w2.load_state_dict(self.critic.state_dict())
+        losses["meta/e2_success_rate"] = success_rate(finished_episodes(d2)[1])
+        losses["meta/e1_pan_rate"] = _pan_rate(d1)
+        losses["meta/e2_pan_rate"] = _pan_rate(d2)
+        return Iteration(frames, returns, successes, losses)
+
+    def policy(self):
+        """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper, picking its
+        looks as in E1 (``e1_looks``)."""
+        return self.actor, self.e1_looker
+
+
+@with_field_docs
+@dataclass(frozen=True)
+class FixedForwardConfig(Section):
+    """The options of Fixed_Forward (``--method fixed_forward``): none of its own."""
+
+    NAME = "fixed_forward"
 
 
 class FixedForward(_MoverA2C):
@@ -292,10 +249,10 @@ class FixedForward(_MoverA2C):
     looker view is rendered.
     """
 
-    name = "fixed_forward"
+    Options = FixedForwardConfig
 
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
+    def __init__(self, options: FixedForwardConfig, **parts):
+        super().__init__(options, **parts)
         self.fixed_policy = TensorDictSequential(self.actor, FixedLooker())
 
     def start(self) -> None:
@@ -313,6 +270,21 @@ class FixedForward(_MoverA2C):
         return self.fixed_policy, None
 
 
+@with_field_docs
+@dataclass(frozen=True)
+class IA2CConfig(LookerOptions):
+    """The options of IA2C (``--method ia2c``): its looker's own A2C."""
+
+    NAME = "ia2c"
+
+    looker_lr: float = 3e-4
+    """Adam learning rate of the looker's actor and critic (the paper's preset: 3e-5)."""
+
+    def checks(self) -> dict[str, tuple[bool, str]]:
+        """Each field's check."""
+        return super().checks() | {"looker_lr": positive_rate(self.looker_lr)}
+
+
 class IA2C(_MoverA2C):
     """IA2C: mover and looker are independent A2C learners on the shared reward.
 
@@ -320,14 +292,13 @@ class IA2C(_MoverA2C):
     ``s_bar_{t+1}`` and its reward is the next move's, ``r_{t+1}`` (see :func:`looker_transitions`).
     """
 
-    name = "ia2c"
-    READS = ("looker_lr", "looker_entropy_coeff", "looker_hold_prob")
+    Options = IA2CConfig
     LOGGED = {"looker/pan_rate": "pan_rate", "looker/entropy": "looker_entropy"}
 
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
-        self.looker_actor, _, self.looker_loss = self._actor_critic("looker", LOOKER, config.looker_lr)
-        start_holding(self.looker_actor, config.looker_hold_prob)
+    def __init__(self, options: IA2CConfig, **parts):
+        super().__init__(options, **parts)
+        self.looker_actor, _, self.looker_loss = self._actor_critic("looker", LOOKER, options.looker_lr)
+        start_holding(self.looker_actor, options.looker_hold_prob)
 
     def start(self) -> None:
         """Build the environment, with the looker in the loop."""
@@ -351,19 +322,26 @@ class IA2C(_MoverA2C):
         return self.actor, self.looker_actor
 
 
+@with_field_docs
+@dataclass(frozen=True)
+class JointConfig(LookerOptions):
+    """The options of Joint (``--method joint``): how its look is explored and starts."""
+
+    NAME = "joint"
+
+
 class Joint(Method):
     """Joint: one agent picks (u_m, u_c) as one of 9 actions from the mover's view, trained by A2C."""
 
-    name = "joint"
-    READS = ("looker_entropy_coeff", "looker_hold_prob")
+    Options = JointConfig
     LOGGED = {"joint/pan_rate": "pan_rate", "joint/look_entropy": "looker_entropy"}
 
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
+    def __init__(self, options: JointConfig, **parts):
+        super().__init__(options, **parts)
         self.actor, _, self.loss = self._actor_critic(
-            "joint", MOVER, config.lr, action_agent=JOINT, num_actions=JOINT_ACTIONS
+            "joint", MOVER, self.a2c.lr, action_agent=JOINT, num_actions=JOINT_ACTIONS
         )
-        start_holding(self.actor, config.looker_hold_prob)
+        start_holding(self.actor, options.looker_hold_prob)
         self.joint_policy = make_joint_policy(self.actor)
 
     def start(self) -> None:
@@ -384,17 +362,34 @@ class Joint(Method):
         return self.joint_policy, None
 
 
+@with_field_docs
+@dataclass(frozen=True)
+class CurriculumConfig(LookerOptions):
+    """The options of Curriculum (``--method curriculum``): Joint's, and how long it trains without obstacles."""
+
+    NAME = "curriculum"
+
+    curriculum_fraction: float = 0.3
+    """Fraction of the frames spent pre-training the joint agent in a room without obstacles."""
+
+    def checks(self) -> dict[str, tuple[bool, str]]:
+        """Each field's check."""
+        fraction = self.curriculum_fraction
+        return super().checks() | {
+            "curriculum_fraction": (is_number(fraction) and 0.0 < fraction < 1.0, "a number in (0, 1)")
+        }
+
+
 class Curriculum(Joint):
     """Curriculum: :class:`Joint` trained in an empty room for ``curriculum_fraction`` of the frames, then with
     the configured obstacles (same networks and optimizer)."""
 
-    name = "curriculum"
-    READS = (*Joint.READS, "curriculum_fraction")
+    Options = CurriculumConfig
 
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
+    def __init__(self, options: CurriculumConfig, **parts):
+        super().__init__(options, **parts)
         self.frames = 0
-        self.switch_at = int(config.curriculum_fraction * config.frames)
+        self.switch_at = int(options.curriculum_fraction * self.run.frames)
         self.phase = self._phase()
         self._restored_phase: dict | None = None  # a checkpoint's phase, which start() builds once
 
@@ -416,7 +411,7 @@ class Curriculum(Joint):
             self.start()
         iteration = super().iterate()
         self.frames += iteration.frames
-        obstacles = self.phase.get("num_obstacles", self.config.env.num_obstacles)
+        obstacles = self.phase.get("num_obstacles", self.env.num_obstacles)
         iteration.losses["curriculum/obstacles"] = float(obstacles)
         return iteration
 
@@ -431,142 +426,11 @@ class Curriculum(Joint):
         self._restored_phase = state.get("phase")  # absent in older checkpoints: start() then picks the phase
 
 
-class Meta(_MoverA2C):
-    """The paper's meta-evaluation (section 3), one iteration (docs/training.md, "The algorithm in code").
-
-    1. roll the mover out with phi1 in E1 (D1) and with epsilon-greedy phi2 in E2 (D2);
-    2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);
-    3. REINFORCE step on phi2 with V(tau_k) in place of the return;
-    4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
-    5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it
-       (``mover_rollouts='all'``: first one on the first D1 and D2 together);
-    6. copy w1 -> w2.
-    """
-
-    name = "meta"
-    READS = (
-        "epsilon",
-        "alpha",
-        "shared_seeds",
-        "resample_d1",
-        "e1_looks",
-        "mover_rollouts",
-        "looker_importance_weights",
-        "looker_credit",
-        "looker_optimizer",
-        "looker_lr",
-        "looker_entropy_coeff",
-        "looker_hold_prob",
-    )
-    LOGGED = {
-        "looker/meta_value": "meta_value",
-        "looker/meta_value_std": "meta_value_std",
-        "looker/baseline": "meta_baseline",
-        "looker/entropy": "looker_entropy",
-        "meta/e1_pan_rate": "e1_pan_rate",
-        "meta/e2_pan_rate": "e2_pan_rate",
-        "meta/e2_success_rate": "e2_success_rate",
-        "looker/best_look_agreement": "best_look_agreement",
-        "looker/best_look_left": "best_look_left",
-        "looker/best_look_right": "best_look_right",
-    }
-
-    def __init__(self, config: TrainConfig, device: torch.device):
-        super().__init__(config, device)
-        self.phi2 = make_actor(self._encoder(bearing=False), config.hidden_size, LOOKER).to(self.device)
-        start_holding(self.phi2, config.looker_hold_prob)
-        self.phi1 = copy.deepcopy(self.phi2)
-        self.phi1.requires_grad_(False)
-        # E1's looker: phi1's argmax ('greedy') or phi1 itself, which samples ('sample')
-        self.e1_looker = EpsilonGreedyLooker(self.phi1, 0.0) if config.e1_looks == "greedy" else self.phi1
-        self.w2 = copy.deepcopy(self.critic)
-        self.w2.requires_grad_(False)
-        self.meta_loss = MetaEvaluationLoss(
-            self.phi2,
-            self.w2,
-            self.critic,
-            entropy_coeff=config.looker_entropy_coeff,
-            behaviour_epsilon=config.epsilon if config.looker_importance_weights else None,
-            credit=config.looker_credit,
-        )
-        self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
-        self._optimizer("looker", [self.phi2], config.looker_lr, config.looker_optimizer)
-
-    def start(self) -> None:
-        """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""
-        e2_seed_offset = 0 if self.config.shared_seeds else 1
-        self.e1 = self._collector(self.actor, looker=self.e1_looker, name="E1's collector")
-        self.e2 = self._collector(
-            self.actor,
-            looker=EpsilonGreedyLooker(self.phi2, self.config.epsilon),
-            seed_offset=e2_seed_offset,
-            name="E2's collector",
-            look_views=self.config.looker_credit in VIEW_CREDITS,
-        )
-
-    def iterate(self) -> Iteration:
-        """Steps 1 to 6 of the class docstring."""
-        d1, d2 = self._next(self.e1), self._next(self.e2)
-        frames, (returns, successes) = d1.numel() + d2.numel(), finished_episodes(d1)
-        losses = self._step("looker", self.meta_loss, d2, d1)
-        soft_update(self.phi1, self.phi2, self.config.alpha)
-        if self.config.mover_rollouts == "all":
-            both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
-            first = self._update_mover(both)  # logged apart from the D1 step's losses, which would overwrite them
-            losses |= {key.replace("mover/", "mover_d1_d2/", 1): value for key, value in first.items()}
-        if self.config.resample_d1:
-            d1 = self._next(self.e1)
-            frames += d1.numel()
-            more_returns, more_successes = finished_episodes(d1)
-            returns, successes = returns + more_returns, successes + more_successes
-        if self.config.resample_d1 or self.config.mover_rollouts == "d1":
-            losses |= self._update_mover(d1)
-        self.w2.load_state_dict(self.critic.state_dict())
-        losses["meta/e2_success_rate"] = success_rate(finished_episodes(d2)[1])
-        losses["meta/e1_pan_rate"] = _pan_rate(d1)
-        losses["meta/e2_pan_rate"] = _pan_rate(d2)
-        return Iteration(frames, returns, successes, losses)
-
-    def policy(self):
-        """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper, picking its
-        looks as in E1 (``e1_looks``)."""
-        return self.actor, self.e1_looker
-
-
-METHOD_CLASSES = {cls.name: cls for cls in (Meta, FixedForward, Joint, IA2C, Curriculum)}
-"""The training methods by name: the one registry that ``--method``, the config's check and the option tables
-read."""
-METHODS = tuple(METHOD_CLASSES)
-METHOD_OPTIONS = {
-    option: tuple(name for name, cls in METHOD_CLASSES.items() if option in cls.READS)
-    for option in dict.fromkeys(option for cls in METHOD_CLASSES.values() for option in cls.READS)
+METHOD_CLASSES: dict[str, type[Method]] = {
+    cls.Options.NAME: cls for cls in (Meta, FixedForward, Joint, IA2C, Curriculum)
 }
-"""The options that only some methods read, and those methods; every other option is read by every method."""
-
-
-def unused_options(config: TrainConfig, names) -> list[str]:
-    """Those of the option ``names`` that ``config``'s method does not read."""
-    reads = METHOD_CLASSES[config.method].READS
-    return [name for name in names if name in METHOD_OPTIONS and name not in reads]
-
-
-def make_method(config: TrainConfig, device: torch.device, start: bool = True) -> Method:
-    """Build the configured method's networks and optimizers, and (``start``) its environments and collectors."""
-    method = METHOD_CLASSES[config.method](config, device)
-    if start:
-        method.start()
-    return method
-
-
-@contextmanager
-def torch_threads(count: int) -> Iterator[None]:
-    """Run torch's CPU ops on ``count`` threads inside the block, then restore the previous count."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(count)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
+"""The training methods by name: the one registry that ``--method``, the configs and the option tables read."""
+METHODS = tuple(METHOD_CLASSES)
 
 
 @torch.no_grad()

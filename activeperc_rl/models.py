@@ -10,17 +10,62 @@ share one encoder (as in the usual pixel A2C); the looker's networks have their 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 from tensordict.nn import TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.modules import ProbabilisticActor
 
-from activeperc_env import MOVER_ACTIONS, EnvConfig
-from activeperc_env.core import HOLD
+from activeperc_env import EnvConfig
+from activeperc_env.config import is_int, with_field_docs
+from activeperc_env.core import HOLD, MOVER_ACTIONS
+from activeperc_rl.config import Section, int_in
+from activeperc_rl.envs import MAX_FRAME_STACK
 
 JOINT = "joint"
-NUM_ACTIONS = len(MOVER_ACTIONS)  # the looker has as many (LOOKER_ACTIONS)
+NUM_ACTIONS = MOVER_ACTIONS  # the looker has as many (LOOKER_ACTIONS)
+
+
+@with_field_docs
+@dataclass(frozen=True)
+class NetworkConfig(Section):
+    """The networks every method builds: the encoder's size, the mover's bearing layout and the frames it reads."""
+
+    NAME = "network"
+
+    channels: tuple[int, ...] = (16, 32)
+    """Output channels of the encoder's conv layers (kernels 8, 4, 3, ... with strides 4, 2, 1, ...)."""
+    hidden_size: int = 256
+    """Width of the encoder's output and of the heads' input."""
+    bearing_bins: int = 30
+    """Bins of the mover's bearing layout (0: none): its networks (and the joint agent's) lay the view's features
+    out by bearing from the robot's heading, wherever the camera looks, so that its critic values a view by what it
+    shows whatever the pan."""
+    frame_stack: int = 1
+    """Views of the latest cycles that every network reads, stacked on the image's channels (1: the current view
+    only): a memory of where the goal was (make_env's frame_stack); needs bearing_bins 0."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.channels, (list, tuple)):  # YAML and the flags give lists
+            object.__setattr__(self, "channels", tuple(int(c) if is_int(c) else c for c in self.channels))
+        super().__post_init__()
+
+    def checks(self) -> dict[str, tuple[bool, str]]:
+        """Each field's check."""
+        channels_ok = isinstance(self.channels, tuple) and len(self.channels) >= 1
+        return {
+            "channels": (
+                channels_ok and all(int_in(c, 1, 4096) for c in self.channels),
+                "one or more ints in 1 .. 4096",
+            ),
+            "hidden_size": (int_in(self.hidden_size, 1, 2**16), "an int in 1 .. 65536"),
+            "bearing_bins": (int_in(self.bearing_bins, 0, 360), "an int in 0 .. 360"),
+            "frame_stack": (
+                int_in(self.frame_stack, 1, MAX_FRAME_STACK) and (self.frame_stack == 1 or self.bearing_bins == 0),
+                f"an int in 1 .. {MAX_FRAME_STACK}, 1 with bearing_bins (which lays out one view: give bearing_bins 0)",
+            ),
+        }
 
 
 class Encoder(nn.Module):

@@ -3,11 +3,11 @@
 A run directory holds ``config.yaml`` (the full config), ``metrics.csv`` (one row per iteration),
 ``tb/`` (TensorBoard), ``checkpoint.pt`` (atomic; when the run has started, every ``checkpoint_every``
 seconds, at the end and on Ctrl-C, SIGTERM or SIGHUP) and, after a finished run, ``eval.json`` (the learned and
-the random policy on held-out layouts). One process at a time trains into it (``activeperc_rl.rundir``).
+the random policy on held-out layouts). One process at a time trains into it (``activeperc_rl.runtime.rundir``).
 
 Reproducibility: the same config on CPU gives the same run (networks, sampling and layouts are
 seeded from ``seed``), and so does a run stopped and resumed: the checkpoint holds the networks, optimizers,
-random-number state and where the collectors stand (:meth:`~activeperc_rl.methods.Method.collection_state`).
+random-number state and where the collectors stand (:func:`~activeperc_rl.runtime.checkpoint.collection_state`).
 A resume with another number of collection workers starts the rooms' episodes anew instead (seeded from
 ``seed`` and the frame count).
 """
@@ -29,43 +29,47 @@ import torch
 from tqdm import tqdm
 
 from activeperc_env.config import is_int
-from activeperc_rl import portable
-from activeperc_rl.allocator import keep_freed_memory
-from activeperc_rl.atomic import atomic_path
-from activeperc_rl.checkpoint import (
+from activeperc_rl.collection import WorkerError
+from activeperc_rl.envs import torch_device
+from activeperc_rl.evaluate import evaluate
+from activeperc_rl.method_base import Iteration
+from activeperc_rl.methods import success_rate
+from activeperc_rl.models import FixedLooker
+from activeperc_rl.recipe import TrainConfig, make_method
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.allocator import keep_freed_memory
+from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.checkpoint import (
     CHECKPOINT,
     CONFIG,
     EVAL,
     METRIC_COLUMNS,
     METRICS,
     MetricsLog,
+    collection_state,
     load_checkpoint,
+    restore_collection,
     restore_method,
     save_checkpoint,
+    save_yaml,
 )
-from activeperc_rl.collection import WorkerError
-from activeperc_rl.config import TrainConfig, save_yaml
-from activeperc_rl.envs import torch_device
-from activeperc_rl.evaluate import evaluate
-from activeperc_rl.methods import Iteration, make_method, success_rate
-from activeperc_rl.models import FixedLooker
-from activeperc_rl.rundir import check_fresh, claim_run_dir
-from activeperc_rl.signals import on_stop_signals
+from activeperc_rl.runtime.rundir import check_fresh, claim_run_dir
+from activeperc_rl.runtime.signals import on_stop_signals
 
 # how the final evaluation names each policy it plays (the keys of eval.json)
 EVAL_NAMES = {"learned": "learned", "camera_held": "learned, camera held forward", "random": "random"}
 
 
 def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
-    """Train ``config.method`` for ``config.frames`` frames into the run directory ``out``.
+    """Train ``config.method`` for ``config.run.frames`` frames into the run directory ``out``.
 
-    For this whole process, torch runs on ``config.torch_threads`` threads and glibc's ``malloc`` keeps freed
-    memory for reuse (:func:`~activeperc_rl.allocator.keep_freed_memory`).
+    For this whole process, torch runs on ``config.run.torch_threads`` threads and glibc's ``malloc`` keeps freed
+    memory for reuse (:func:`~activeperc_rl.runtime.allocator.keep_freed_memory`).
 
     Args:
         config: the run's configuration.
         out: the run directory (created if needed).
-        resume: continue the checkpoint in ``out`` up to ``config.frames`` (the other options must
+        resume: continue the checkpoint in ``out`` up to ``config.run.frames`` (the other options must
             match the saved ones).
         progress: show a progress bar.
 
@@ -74,34 +78,35 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         ``"eval"``: ``{"learned": ..., "random": ...}`` as :func:`~activeperc_rl.evaluate.evaluate` gives them.
     """
     out = Path(out)
-    if config.portable:
+    if config.run.portable:
         portable.require_pinned()
     if resume and not (out / CHECKPOINT).is_file():  # checked before claiming, which would create the directory
         raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
-    device = torch_device(config.device)
+    device = torch_device(config.run.device)
     with claim_run_dir(out):
         if resume:
             state = load_checkpoint(out / CHECKPOINT, config)
             # a run overshoots its target by up to one iteration: resuming to that same target is fine
-            if config.frames < state["frames"] and config.frames != state["config"]["frames"]:
+            target = TrainConfig.from_saved(state["config"]).run.frames
+            if config.run.frames < state["frames"] and config.run.frames != target:
                 raise ValueError(
-                    f"frames={config.frames} is below the {state['frames']} frames the run in {str(out)!r} has "
+                    f"frames={config.run.frames} is below the {state['frames']} frames the run in {str(out)!r} has "
                     f"trained: --frames is the total to train to, not an increment"
                 )
         else:
             check_fresh(out)
             state = None
         verb = "resuming" if resume else "training"
-        print(f"activeperc-train: {verb} {config.method} for {config.frames} frames -> {out}", flush=True)
+        print(f"activeperc-train: {verb} {config.method} for {config.run.frames} frames -> {out}", flush=True)
         return _train(config, out, device, state, progress)
 
 
 def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | None, progress: bool) -> dict:
     """:func:`train` in the claimed run directory ``out``, from the checkpoint ``state`` or afresh (``None``)."""
     keep_freed_memory()  # the learner's large tensors reuse freed memory instead of faulting in fresh pages
-    if config.torch_threads:
-        torch.set_num_threads(config.torch_threads)
-    torch.manual_seed(config.seed)
+    if config.run.torch_threads:
+        torch.set_num_threads(config.run.torch_threads)
+    torch.manual_seed(config.run.seed)
     run = _Run(config, out, device, state)
     with ExitStack() as stack:
         stack.callback(run.method.close)
@@ -109,11 +114,11 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         log = _Log(stack, run, progress)
         last_checkpoint = time.monotonic()
         with _interruptible() as interrupted:
-            while run.frames < config.frames and not interrupted():
+            while run.frames < config.run.frames and not interrupted():
                 start = time.perf_counter()
                 step = run.iterate()
                 log.write(step, run.advance(step, time.perf_counter() - start))
-                if time.monotonic() - last_checkpoint >= config.checkpoint_every:
+                if time.monotonic() - last_checkpoint >= config.run.checkpoint_every:
                     run.checkpoint()
                     last_checkpoint = time.monotonic()
             run.checkpoint()
@@ -122,7 +127,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     if was_interrupted:
         print(f"interrupted at {run.frames} frames; checkpoint saved in {out}; continue with --resume --out {out}")
         return result
-    if config.eval_episodes:
+    if config.run.eval_episodes:
         result["eval"] = run.evaluate(progress)
     print(f"activeperc-train: done, {run.frames} frames; the run is in {out}", flush=True)
     return result
@@ -135,7 +140,7 @@ class _Run:
         self.config, self.out, self.device, self.state = config, out, device, state
         self.method = make_method(config, device, start=False)
         self.frames, self.iteration, self.elapsed = 0, 0, 0.0
-        self.window = deque(maxlen=config.success_window)  # (return, success) of the last finished episodes
+        self.window = deque(maxlen=config.run.success_window)  # (return, success) of the last finished episodes
         # an exact resume puts the rooms where the checkpoint left them; without their state (another number of
         # collection workers, or a checkpoint from before it was saved) the rooms start new episodes from a
         # stream of their own
@@ -143,7 +148,7 @@ class _Run:
             state is not None
             and state.get("collection") is not None
             and "env_seed" in state
-            and state.get("collect_workers", 0) == config.collect_workers
+            and state.get("collect_workers", 0) == config.run.collect_workers
         )
         if state is not None:
             restore_method(self.method, state, out / CHECKPOINT)
@@ -159,7 +164,7 @@ class _Run:
         self.method.start()
         if self.exact:
             try:
-                self.method.load_collection_state(state["collection"])
+                restore_collection(self.method, state["collection"])
             except ValueError as error:  # e.g. another MuJoCo whose state rows differ, or a damaged checkpoint
                 print(
                     f"activeperc-train: warning: the rooms' state in {out / CHECKPOINT} does not fit this run "
@@ -174,7 +179,7 @@ class _Run:
         # nothing is written before the run has started; from then on the directory holds a checkpoint
         if state is not None:
             save_yaml(config, out / CONFIG)
-            if self.frames < config.frames:
+            if self.frames < config.run.frames:
                 _retire_eval(out)
             return
         try:  # the first checkpoint, then config.yaml: a run directory never holds a config without one
@@ -188,7 +193,7 @@ class _Run:
     def checkpoint(self) -> None:
         """Save the networks, the optimizers, the counters, the random state and the rooms' state."""
         try:
-            collection = self.method.collection_state()
+            collection = collection_state(self.method)
         except WorkerError:  # a worker died since the last iteration: the next one says so; save what we have
             collection = None
         save_checkpoint(
@@ -203,7 +208,7 @@ class _Run:
                 "torch_rng": torch.get_rng_state(),
                 "env_seed": self.method.env_seed,
                 "collection": collection,
-                "collect_workers": self.config.collect_workers,
+                "collect_workers": self.config.run.collect_workers,
             },
         )
         self.saved_frames = self.frames
@@ -253,16 +258,15 @@ class _Run:
         module turns the camera, also the learned mover with the camera held forward (``"camera_held"``): what the
         learned looker adds."""
         mover_policy, looker = self.method.policy()
-        held_out = dict(
-            episodes=self.config.eval_episodes, seed=self.config.seed, device=self.device, progress=progress
-        )
+        run = self.config.run
+        held_out = dict(episodes=run.eval_episodes, seed=run.seed, device=self.device, progress=progress)
         result = {"learned": evaluate(self.config, mover_policy, looker, **held_out)}
         if looker is not None:
             result["camera_held"] = evaluate(self.config, mover_policy, FixedLooker(), **held_out)
         result["random"] = evaluate(self.config, None, None, **held_out)
         record = {
             "frames": self.frames,
-            "eval_seed": self.config.seed,
+            "eval_seed": self.config.run.seed,
             "torch_cpu_capability": portable.cpu_capability(),
         }
         _write_json(self.out / EVAL, result | record)
@@ -291,7 +295,9 @@ class _Log:
         purge = run.frames + 1 if resumed else None
         self.writer = stack.enter_context(SummaryWriter(str(run.out / "tb"), purge_step=purge))
         self.bar = stack.enter_context(
-            tqdm(total=run.config.frames, initial=run.frames, unit="frame", disable=not progress, dynamic_ncols=True)
+            tqdm(
+                total=run.config.run.frames, initial=run.frames, unit="frame", disable=not progress, dynamic_ncols=True
+            )
         )
 
     def write(self, step: Iteration, row: dict) -> None:
@@ -326,12 +332,12 @@ def _episode(saved) -> tuple[float, bool]:
 def _fresh_env_seed(config: TrainConfig, frames: int) -> int:
     """The layout streams' base seed of a resume that cannot put the rooms where they were: from the seed and
     the frames, so that the resumed rooms do not replay the episodes the run started with."""
-    return int(np.random.SeedSequence([config.seed, frames]).generate_state(1)[0])
+    return int(np.random.SeedSequence([config.run.seed, frames]).generate_state(1)[0])
 
 
 @contextmanager
 def _interruptible():
-    """Turn the first stop signal (:func:`~activeperc_rl.signals.stop_signals`: Ctrl-C, SIGTERM, SIGHUP) into a
+    """Turn the first stop signal (:func:`~activeperc_rl.runtime.signals.stop_signals`: Ctrl-C, SIGTERM, SIGHUP) into a
     flag the loop polls; a second one interrupts at once. After a SIGHUP, what would go to the terminal goes to
     ``/dev/null``."""
     flag = {"set": False}

@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from activeperc_rl import allocator
-from activeperc_rl.allocator import keep_freed_memory
+from activeperc_rl.runtime import allocator
+from activeperc_rl.runtime.allocator import keep_freed_memory
 
 PROBE = """
 import ctypes, importlib.util, sys

@@ -4,7 +4,7 @@ import errno
 
 import pytest
 
-from activeperc_rl.atomic import atomic_path, check_writable
+from activeperc_rl.runtime.atomic import atomic_path, check_writable
 
 
 def test_atomic_path_replaces_the_file_and_keeps_the_suffix(tmp_path):

@@ -16,10 +16,10 @@ from torch import nn
 
 from activeperc_env import EnvConfig
 from activeperc_rl import cli
-from activeperc_rl.checkpoint import load_checkpoint
 from activeperc_rl.collection import Rollouts, WorkerError
 from activeperc_rl.envs import make_env
 from activeperc_rl.models import FixedLooker, make_actor, make_encoder
+from activeperc_rl.runtime.checkpoint import load_checkpoint
 
 SMALL = EnvConfig(max_cycles=6)
 
@@ -204,10 +204,11 @@ def test_a_stop_signal_to_the_process_group_stops_the_workers_and_saves(tmp_path
 
 def test_a_dead_worker_of_meta_names_its_environment():
     """meta runs E1 and E2, each with its own workers: the message says which one lost a worker."""
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
-    config = TrainConfig(num_envs=2, rollout_length=4, collect_workers=1, channels=(8,), hidden_size=16, env=SMALL)
+    config = TrainConfig.from_options(
+        num_envs=2, rollout_length=4, collect_workers=1, channels=(8,), hidden_size=16, env=SMALL
+    )
     method = make_method(config, torch.device("cpu"))
     try:
         method.e2.collector.procs[0].kill()

@@ -1,5 +1,6 @@
 """Invalid configuration values are refused with a message that names them."""
 
+import dataclasses
 import pydoc
 
 import gymnasium
@@ -8,6 +9,7 @@ import pytest
 
 import activeperc_env
 from activeperc_env.config import EnvConfig, field_docs
+from activeperc_env.rooms import DEFAULT
 
 
 @pytest.mark.parametrize(
@@ -97,10 +99,13 @@ def test_numpy_numbers_become_python_numbers():
 
 
 def test_help_shows_every_field_with_its_default_and_meaning():
-    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.methods import METHOD_CLASSES
+    from activeperc_rl.recipe import SECTIONS
 
-    for cls in (EnvConfig, TrainConfig):
+    options = [cls.Options for cls in METHOD_CLASSES.values()]
+    for cls in (EnvConfig, *SECTIONS.values(), *options):
         text = " ".join(pydoc.render_doc(cls, renderer=pydoc.plaintext).replace("|", " ").split())
+        assert field_docs(cls).keys() == {f.name for f in dataclasses.fields(cls)}, cls
         for name, doc in field_docs(cls).items():
             assert f"{name} (" in text and f"default {getattr(cls(), name)!r}" in text, name
             assert doc in text, name
@@ -109,18 +114,17 @@ def test_help_shows_every_field_with_its_default_and_meaning():
 
 def test_a_run_saved_before_room_v1_existed_is_a_v0_run(tmp_path):
     """config.yaml and checkpoints of earlier releases hold no env.version: they trained in v0, and load so."""
-    import dataclasses
 
     import yaml
 
-    from activeperc_rl.checkpoint import load_run_config
-    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.recipe import TrainConfig
+    from activeperc_rl.runtime.checkpoint import load_run_config
 
-    old = TrainConfig(env=EnvConfig(version=0)).to_dict()
+    old = TrainConfig.from_options(env=EnvConfig(version=0)).to_dict()
     del old["env"]["version"]
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(old))
     assert load_run_config(tmp_path).env == EnvConfig(version=0)
-    assert TrainConfig.from_dict({"env": {"fov": 100}}).env.version == 1  # a preset's room is today's default
+    assert TrainConfig.from_dict({"env": {"fov": 100}}).env.version == DEFAULT  # a preset's room is today's default
     sim = activeperc_env.Simulator(EnvConfig(version=0))
     sim.reset(seeds=[0])
     state = sim.get_state()
@@ -136,10 +140,11 @@ def test_a_run_saved_before_room_v1_existed_is_a_v0_run(tmp_path):
 
 
 def test_replacing_the_version_brings_that_versions_defaults():
-    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.recipe import TrainConfig
 
     v0 = TrainConfig().replace(version=0)
     assert v0.env == EnvConfig(version=0)
     kept = TrainConfig().replace(version=0, turn_speed=45)  # an option given with it stays as given
     assert kept.env == EnvConfig(version=0, turn_speed=45)
-    assert TrainConfig(env=EnvConfig(version=0, max_cycles=50)).replace(version=1).env == EnvConfig(max_cycles=50)
+    changed = TrainConfig.from_options(env=EnvConfig(version=0, max_cycles=50)).replace(version=1).env
+    assert changed == EnvConfig(max_cycles=50, version=1)

@@ -1,6 +1,5 @@
 """Pieces of the training methods on hand-made inputs: soft update, the looker's transitions, lookers."""
 
-import dataclasses
 import math
 
 import pytest
@@ -10,8 +9,7 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
-from activeperc_rl.config import TrainConfig
-from activeperc_rl.methods import METHODS, finished_episodes, looker_transitions, make_method, soft_update, success_rate
+from activeperc_rl.methods import METHODS, finished_episodes, looker_transitions, soft_update, success_rate
 from activeperc_rl.models import (
     BearingLayout,
     EpsilonGreedyLooker,
@@ -21,6 +19,7 @@ from activeperc_rl.models import (
     make_encoder,
     start_holding,
 )
+from activeperc_rl.recipe import TrainConfig, make_method
 
 
 def test_soft_update_is_eq_3():
@@ -207,13 +206,12 @@ def test_an_encoder_of_a_frame_stack_reads_every_view_and_pan():
 
 
 def test_curriculum_keeps_its_switch_point_on_resume():
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
     small = dict(method="curriculum", channels=(4,), hidden_size=8)
-    first = make_method(TrainConfig(frames=1000, **small), torch.device("cpu"), start=False)
+    first = make_method(TrainConfig.from_options(frames=1000, **small), torch.device("cpu"), start=False)
     first.frames = 400  # past the switch at 300
-    resumed = make_method(TrainConfig(frames=5000, **small), torch.device("cpu"), start=False)
+    resumed = make_method(TrainConfig.from_options(frames=5000, **small), torch.device("cpu"), start=False)
     assert resumed.switch_at == 1500
     resumed.load_state_dict(first.state_dict())
     assert (resumed.frames, resumed.switch_at) == (400, 300) and resumed._phase() == {}
@@ -228,10 +226,9 @@ def test_curriculum_keeps_its_switch_point_on_resume():
     ],
 )
 def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
-    config = TrainConfig(
+    config = TrainConfig.from_options(
         num_envs=2, rollout_length=4, channels=(4,), hidden_size=8,
         mover_rollouts=mover_rollouts, resample_d1=resample_d1,
     )  # fmt: skip
@@ -249,12 +246,11 @@ def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
 
 
 def test_looker_and_mover_entropy_weights_are_separate():
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
     small = dict(channels=(4,), hidden_size=8, entropy_coeff=0.02, looker_entropy_coeff=0.005)
-    ia2c = make_method(TrainConfig(method="ia2c", **small), torch.device("cpu"), start=False)
-    meta = make_method(TrainConfig(method="meta", **small), torch.device("cpu"), start=False)
+    ia2c = make_method(TrainConfig.from_options(method="ia2c", **small), torch.device("cpu"), start=False)
+    meta = make_method(TrainConfig.from_options(method="meta", **small), torch.device("cpu"), start=False)
     assert float(ia2c.mover_loss.entropy_coeff) == pytest.approx(0.02)
     assert float(ia2c.looker_loss.entropy_coeff) == pytest.approx(0.005)
     assert float(meta.mover_loss.entropy_coeff) == pytest.approx(0.02)
@@ -263,7 +259,7 @@ def test_looker_and_mover_entropy_weights_are_separate():
 
 def test_looker_importance_weights_flag_reaches_the_meta_loss():
     from activeperc_rl.cli import build_parser, config_from_args
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import make_method
 
     for argv, expected in (([], None), (["--looker-importance-weights", "--epsilon", "0.1"], 0.1)):
         args = build_parser().parse_args(["--channels", "4", "--hidden-size", "8", *argv])
@@ -273,10 +269,9 @@ def test_looker_importance_weights_flag_reaches_the_meta_loss():
 
 @pytest.mark.parametrize("e1_looks", ["greedy", "sample"])
 def test_meta_e1_looks(e1_looks):
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
-    config = TrainConfig(channels=(4,), hidden_size=8, e1_looks=e1_looks, looker_hold_prob=0.9)
+    config = TrainConfig.from_options(channels=(4,), hidden_size=8, e1_looks=e1_looks, looker_hold_prob=0.9)
     meta = make_method(config, torch.device("cpu"), start=False)
     mover, looker = meta.policy()
     assert mover is meta.actor
@@ -294,10 +289,9 @@ def test_meta_e1_looks(e1_looks):
 
 
 def test_updates_run_on_learner_threads():
-    from activeperc_rl.config import TrainConfig
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
-    config = TrainConfig(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, learner_threads=2)
+    config = TrainConfig.from_options(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, learner_threads=2)
     method = make_method(config, torch.device("cpu"))
     seen, loss = [], method.mover_loss
 
@@ -321,7 +315,7 @@ def test_updates_run_on_learner_threads():
 @pytest.mark.parametrize("method", METHODS)
 def test_every_network_lands_on_the_device(method):
     # torch's "meta" device stands in for a GPU: a layer left on the CPU shows up here without one
-    config = TrainConfig(method=method, channels=(8,), hidden_size=16)
+    config = TrainConfig.from_options(method=method, channels=(8,), hidden_size=16)
     built = make_method(config, torch.device("meta"), start=False)
     for name, module in built.modules.items():
         for key, tensor in [*module.named_parameters(), *module.named_buffers()]:
@@ -330,7 +324,7 @@ def test_every_network_lands_on_the_device(method):
 
 def test_ia2c_skips_the_looker_update_when_no_look_of_a_rollout_is_valid():
     """With 2-cycle rollouts and 3-cycle episodes, some rollouts hold only the look after an episode's last move."""
-    config = TrainConfig(
+    config = TrainConfig.from_options(
         method="ia2c", num_envs=1, rollout_length=2, channels=(8,), hidden_size=16, env={"max_cycles": 3}
     )
     method = make_method(config, torch.device("cpu"))
@@ -356,7 +350,7 @@ def test_a_collector_that_fails_to_start_closes_its_env(monkeypatch):
 
     monkeypatch.setattr(methods, "make_env", make_env)
     monkeypatch.setattr(methods, "Collector", broken_collector)
-    method = make_method(TrainConfig(method="fixed_forward", num_envs=2), torch.device("cpu"), start=False)
+    method = make_method(TrainConfig.from_options(method="fixed_forward", num_envs=2), torch.device("cpu"), start=False)
     with pytest.raises(RuntimeError, match="collector refused"):
         method.start()
     assert len(made) == 1 and made[0].is_closed
@@ -369,7 +363,7 @@ def _parameters(module: nn.Module) -> list[torch.Tensor]:
 def test_a_meta_iteration_soft_updates_phi1_towards_the_new_phi2_and_copies_w1_to_w2():
     """Steps 4 and 6 of Meta.iterate, where they are called: phi1 <- alpha phi2 + (1 - alpha) phi1 with the phi2 of
     this iteration's REINFORCE step, and w2 = w1 after the mover's A2C steps."""
-    config = TrainConfig(
+    config = TrainConfig.from_options(
         num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, alpha=0.5, looker_lr=0.01,
         looker_entropy_coeff=0.01,  # a gradient on phi2 from the first iteration on
     )  # fmt: skip
@@ -390,7 +384,7 @@ def test_a_meta_iteration_soft_updates_phi1_towards_the_new_phi2_and_copies_w1_t
 
 @pytest.mark.parametrize("credit", ["every_look", "best_look"])
 def test_a_meta_iteration_that_values_every_look_draws_their_views_and_steps_phi2(credit):
-    config = TrainConfig(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_lr=0.01,
+    config = TrainConfig.from_options(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_lr=0.01,
                          looker_credit=credit, env={"version": 3})  # fmt: skip
     meta = make_method(config, torch.device("cpu"))
     phi2 = _parameters(meta.phi2)
@@ -404,7 +398,7 @@ def test_a_meta_iteration_that_values_every_look_draws_their_views_and_steps_phi
 
 @pytest.mark.parametrize("shared_seeds", [True, False])
 def test_e2_explores_with_epsilon_on_e1s_layouts_unless_told_otherwise(shared_seeds):
-    config = TrainConfig(num_envs=4, rollout_length=8, channels=(4,), hidden_size=8, epsilon=1.0,
+    config = TrainConfig.from_options(num_envs=4, rollout_length=8, channels=(4,), hidden_size=8, epsilon=1.0,
                          shared_seeds=shared_seeds)  # fmt: skip
     meta = make_method(config, torch.device("cpu"))
     try:
@@ -419,8 +413,10 @@ def test_e2_explores_with_epsilon_on_e1s_layouts_unless_told_otherwise(shared_se
 
 
 def test_curriculum_trains_in_the_empty_room_then_with_the_obstacles():
-    config = TrainConfig(method="curriculum", frames=100, curriculum_fraction=0.3, num_envs=4, rollout_length=8,
-                         channels=(4,), hidden_size=8)  # fmt: skip
+    config = TrainConfig.from_options(
+        method="curriculum", frames=100, curriculum_fraction=0.3, num_envs=4, rollout_length=8, channels=(4,),
+        hidden_size=8,
+    )  # fmt: skip
     curriculum = make_method(config, torch.device("cpu"))
     try:
         assert curriculum.switch_at == 30 and curriculum.collector.env.config.num_obstacles == 0
@@ -432,13 +428,14 @@ def test_curriculum_trains_in_the_empty_room_then_with_the_obstacles():
 
 
 def test_method_registry_names_real_options_and_feeds_the_cli():
-    """Each method class's READS are TrainConfig fields, and --method offers exactly the registered classes."""
+    """Each method class's options are a section named after it, and --method offers exactly the registered
+    classes."""
     from activeperc_rl import cli
+    from activeperc_rl.config import Section
     from activeperc_rl.methods import METHOD_CLASSES
 
-    fields = {f.name for f in dataclasses.fields(TrainConfig)}
     for name, cls in METHOD_CLASSES.items():
-        assert cls.name == name
-        assert set(cls.READS) <= fields, name
+        assert issubclass(cls.Options, Section) and cls.Options.NAME == name
+        assert TrainConfig(method=name).options == cls.Options()
     method_flag = next(a for a in cli.build_parser()._actions if a.dest == "method")
     assert tuple(method_flag.choices) == METHODS

@@ -16,10 +16,10 @@ import torch
 
 import activeperc_env.core
 from activeperc_env import LOOKER, MOVER, EnvConfig, Simulator
-from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import make_env
 from activeperc_rl.evaluate import evaluate
-from activeperc_rl.methods import finished_episodes, make_method
+from activeperc_rl.methods import finished_episodes
+from activeperc_rl.recipe import TrainConfig, make_method
 from activeperc_rl.train import train
 
 SHAPING = 0.01  # paid every cycle, on top of the room's own reward
@@ -106,7 +106,7 @@ def test_the_torchrl_env_reports_the_cores_outcomes(ended):
 
 
 def test_evaluation_reports_the_cores_outcomes(ended):
-    result = evaluate(TrainConfig(env=ROOM), episodes=8, seed=0)
+    result = evaluate(TrainConfig.from_options(env=ROOM), episodes=8, seed=0)
     (sim,) = ended
     first = [next(episode for episode in ended[sim] if episode[0] == room) for room in range(8)]  # each room's quota
     assert_mixed(first)
@@ -115,7 +115,7 @@ def test_evaluation_reports_the_cores_outcomes(ended):
 
 
 def test_training_logs_and_eval_json_report_the_cores_outcomes(ended, tmp_path):
-    config = TrainConfig(method="fixed_forward", frames=300, eval_episodes=4, success_window=1000, **TINY)
+    config = TrainConfig.from_options(method="fixed_forward", frames=300, eval_episodes=4, success_window=1000, **TINY)
     train(config, tmp_path / "run", progress=False)
     with open(tmp_path / "run" / "metrics.csv", newline="") as file:
         rows = list(csv.DictReader(file))
@@ -133,7 +133,7 @@ def test_training_logs_and_eval_json_report_the_cores_outcomes(ended, tmp_path):
 
 
 def test_the_meta_iterations_outcomes_and_e2_success_rate_are_the_cores(ended):
-    method = make_method(TrainConfig(method="meta", **TINY), torch.device("cpu"))
+    method = make_method(TrainConfig.from_options(method="meta", **TINY), torch.device("cpu"))
     try:
         step = method.iterate()
         e1, e2 = ended[method.e1.env.sim], ended[method.e2.env.sim]

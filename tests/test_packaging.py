@@ -29,8 +29,9 @@ def test_the_env_imports_nothing_of_the_training_extra():
 
 
 def test_the_wheel_holds_every_module_the_scene_and_the_type_marker(tmp_path):
-    """A user's ``pip install`` from a wheel (not our editable install) gets the scene XML, every module and the
-    ``py.typed`` marker (type checkers read our annotations only with it), and the three console scripts."""
+    """A user's ``pip install`` from a wheel (not our editable install) gets the scene XML, every module, the named
+    presets and the ``py.typed`` marker (type checkers read our annotations only with it), and the three console
+    scripts."""
     import shutil
     import zipfile
     from pathlib import Path
@@ -56,7 +57,8 @@ def test_the_wheel_holds_every_module_the_scene_and_the_type_marker(tmp_path):
         for path in (root / package).rglob("*")
         if path.is_file() and "__pycache__" not in path.parts
     }
-    assert {"activeperc_env/assets/scene.xml", "activeperc_env/py.typed", "activeperc_rl/py.typed"} <= expected
+    shipped = {"activeperc_env/assets/scene.xml", "activeperc_env/py.typed", "activeperc_rl/py.typed"}
+    assert shipped | {"activeperc_rl/presets/paper.yaml", "activeperc_rl/presets/pilot.yaml"} <= expected
     assert expected <= names, f"missing from the wheel: {sorted(expected - names)}"
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     scripts = zipfile.ZipFile(wheel).read(entry_points).decode()

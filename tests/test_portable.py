@@ -4,8 +4,9 @@ checked against committed digests in test_golden.py)."""
 import pytest
 import torch
 
-from activeperc_rl import cli, portable
-from activeperc_rl.config import TrainConfig
+from activeperc_rl import cli
+from activeperc_rl.recipe import TrainConfig
+from activeperc_rl.runtime import portable
 from activeperc_rl.train import train
 
 
@@ -18,7 +19,7 @@ def unpinned(monkeypatch):
 
 def test_portable_must_be_a_bool():
     with pytest.raises(ValueError, match="portable"):
-        TrainConfig(portable="yes")
+        TrainConfig.from_options(portable="yes")
 
 
 def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
@@ -26,7 +27,7 @@ def test_train_refuses_portable_in_an_unpinned_process(unpinned, tmp_path):
     pins = "ATEN_CPU_CAPABILITY=avx2 ONEDNN_MAX_CPU_ISA=AVX2 MKL_CBWR=COMPATIBLE GALLIUM_DRIVER=softpipe "
     pins += "DRAW_USE_LLVM=0"
     with pytest.raises(ValueError, match=pins):
-        train(TrainConfig(portable=True, frames=256), tmp_path / "run")
+        train(TrainConfig.from_options(portable=True, frames=256), tmp_path / "run")
     assert not (tmp_path / "run").exists()
 
 
@@ -74,11 +75,11 @@ def test_the_digest_of_a_state_sees_every_bit():
 def test_portable_mode_takes_the_fused_adam_step(method):
     """The unfused Adam step's square root is MKL's, which rounds by CPU vendor; portable mode's step is torch's
     fused one, and the default keeps the unfused step (so default runs keep their bits)."""
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import make_method
 
     small = dict(method=method, channels=(4,), hidden_size=8)
     for is_portable in (False, True):
-        trainer = make_method(TrainConfig(portable=is_portable, **small), torch.device("cpu"), start=False)
+        trainer = make_method(TrainConfig.from_options(portable=is_portable, **small), torch.device("cpu"), start=False)
         adams = [o for o in trainer.optimizers.values() if isinstance(o, torch.optim.Adam)]
         assert adams and all(bool(g["fused"]) is is_portable for o in adams for g in o.param_groups)
 
@@ -86,11 +87,12 @@ def test_portable_mode_takes_the_fused_adam_step(method):
 def test_a_resumed_portable_run_takes_the_fused_step_whatever_its_checkpoint_took():
     """Adam's load_state_dict takes the saved groups' settings: a portable run resumed from a checkpoint of the
     unfused step (portable mode before it took the fused one) still takes the fused step."""
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import make_method
+    from activeperc_rl.runtime.checkpoint import restore_method
 
     small = dict(method="fixed_forward", channels=(4,), hidden_size=8)
-    unfused = make_method(TrainConfig(**small), torch.device("cpu"), start=False)
-    resumed = make_method(TrainConfig(portable=True, **small), torch.device("cpu"), start=False)
-    resumed.load_state_dict(unfused.state_dict())
+    unfused = make_method(TrainConfig.from_options(**small), torch.device("cpu"), start=False)
+    resumed = make_method(TrainConfig.from_options(portable=True, **small), torch.device("cpu"), start=False)
+    restore_method(resumed, {"method": unfused.state_dict()}, "checkpoint.pt")
     adams = [o for o in resumed.optimizers.values() if isinstance(o, torch.optim.Adam)]
     assert adams and all(g["fused"] is True for o in adams for g in o.param_groups)

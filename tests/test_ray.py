@@ -10,8 +10,8 @@ from test_collection import start_run
 from test_train import read_metrics, run_cli, wait_for_rows
 
 from activeperc_rl import cli
-from activeperc_rl.checkpoint import load_checkpoint
 from activeperc_rl.methods import METHODS
+from activeperc_rl.runtime.checkpoint import load_checkpoint
 
 RAY = ["--collect-workers", "2", "--collector", "ray"]
 

@@ -1,6 +1,7 @@
 """The training pipeline end to end: every method from the CLI, checkpoints, resume, evaluation."""
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -20,14 +21,14 @@ from conftest import PseudoTerminal, assert_same_run, default_stop_signals
 
 from activeperc_rl import cli, evaluate
 from activeperc_rl import train as train_module
-from activeperc_rl.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint, save_checkpoint
-from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import make_env
 from activeperc_rl.losses import BEST_LOOK_SHARES
 from activeperc_rl.methods import METHODS, Meta
 from activeperc_rl.models import FixedLooker
-from activeperc_rl.rundir import claim_run_dir, new_run_dir
-from activeperc_rl.signals import stop_signals
+from activeperc_rl.recipe import OPTION_SECTIONS, TrainConfig
+from activeperc_rl.runtime.checkpoint import METRIC_COLUMNS, MetricsLog, load_checkpoint, save_checkpoint
+from activeperc_rl.runtime.rundir import claim_run_dir, new_run_dir
+from activeperc_rl.runtime.signals import stop_signals
 
 # A few thousand frames on tiny settings: short episodes so that some end inside the run.
 TINY = [
@@ -131,7 +132,7 @@ def test_a_resumed_run_with_a_frame_stack_is_the_uninterrupted_run(tmp_path):
     """The rooms' past views are part of what a checkpoint holds: a run stopped and resumed stacks the same views
     (and, with best_look, credits the same stacked views of every look)."""
     tiny = ["--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0", "--frame-stack", "3"]
-    tiny += ["--version", "3", "--looker-credit", "best_look"]
+    tiny += ["--bearing-bins", "0", "--version", "3", "--looker-credit", "best_look"]
     whole = run_cli(tmp_path, *tiny, "--frames", "800", name="whole")
     cut = run_cli(tmp_path, *tiny, "--frames", "200", name="cut")
     assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
@@ -228,7 +229,7 @@ def test_resume_removes_what_a_killed_checkpoint_write_left_and_drops_a_torn_row
 def test_meta_logs_its_meta_evaluator_and_looker_in_metrics_csv(tmp_path):
     """metrics.csv says whether a meta run's looker learned: M's mean and spread, the baseline, phi2's entropy,
     the pan rates of E1 and E2 and E2's success, one value per iteration."""
-    out = run_cli(tmp_path, "--frames", "200", "--eval-episodes", "0")
+    out = run_cli(tmp_path, "--frames", "200", "--eval-episodes", "0", "--looker-credit", "trajectory")
     rows = read_metrics(out)
     logged = list(Meta.LOGGED.values())
     assert list(rows[0]) == [*METRIC_COLUMNS, *logged]
@@ -307,7 +308,7 @@ def test_a_run_killed_before_its_config_was_written_resumes_from_its_checkpoint(
     (out / "config.yaml").unlink()  # killed between the first checkpoint and config.yaml
     assert cli.main(["--resume", "--out", str(out), "--frames", "128", "--no-progress"]) == 0
     assert int(read_metrics(out)[-1]["frames"]) >= 128
-    assert yaml.safe_load((out / "config.yaml").read_text())["frames"] == 128
+    assert yaml.safe_load((out / "config.yaml").read_text())["run"]["frames"] == 128
 
 
 def test_training_that_fails_midway_is_one_line_with_status_1(tmp_path, monkeypatch, capsys):
@@ -458,87 +459,109 @@ def test_bad_flags_are_named(tmp_path, capsys):
     ],
 )  # fmt: skip
 def test_invalid_training_value_names_the_field(field, value):
-    with pytest.raises(ValueError, match=re.escape(f"TrainConfig.{field}={value!r}")):
-        TrainConfig(**{field: value})
+    section = OPTION_SECTIONS.get(field, "meta")
+    with pytest.raises(ValueError, match=re.escape(f"{section}.{field}={value!r}")):
+        TrainConfig.from_options(**{field: value})
 
 
 def test_a_frame_stack_with_the_bearing_layout_is_refused():
     with pytest.raises(
         ValueError,
-        match=re.escape("TrainConfig.frame_stack=2 is invalid: expected an int in 1 .. 16, 1 with bearing_bins"),
+        match=re.escape("network.frame_stack=2 is invalid: expected an int in 1 .. 16, 1 with bearing_bins"),
     ):
-        TrainConfig(frame_stack=2, bearing_bins=12)
+        TrainConfig.from_options(frame_stack=2, bearing_bins=12)
+    assert TrainConfig.from_options(frame_stack=2, bearing_bins=0).network.frame_stack == 2
 
 
 def test_preset_then_flags(tmp_path):
     preset = tmp_path / "p.yaml"
-    preset.write_text(yaml.safe_dump({"method": "joint", "epsilon": 0.1, "env": {"fov": 100, "max_cycles": 30}}))
+    values = {"method": "joint", "joint": {"looker_hold_prob": 0.9}, "env": {"fov": 100, "max_cycles": 30}}
+    preset.write_text(yaml.safe_dump(values))
     args = cli.build_parser().parse_args(["--config", str(preset), "--fov", "80", "--seed", "3"])
     config = cli.config_from_args(args)
-    assert (config.method, config.epsilon, config.seed) == ("joint", 0.1, 3)
+    assert (config.method, config.options.looker_hold_prob, config.run.seed) == ("joint", 0.9, 3)
     assert (config.env.fov, config.env.max_cycles) == (80, 30)
     preset.write_text(yaml.safe_dump({"methd": "joint"}))
     with pytest.raises(ValueError, match="methd"):
         cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
 
 
-def test_options_the_method_does_not_read_are_named(tmp_path):
+def test_a_flag_the_method_does_not_read_is_an_error_naming_it(tmp_path, capsys):
+    for flags, named in [
+        (["--method", "fixed_forward", "--looker-lr", "1"], "--looker-lr is not an option of method 'fixed_forward' "
+         "(only of meta and ia2c)"),
+        (["--method", "ia2c", "--epsilon", "0.1"], "--epsilon is not an option of method 'ia2c' (only of meta)"),
+        (["--curriculum-fraction", "0.5"], "--curriculum-fraction is not an option of method 'meta' (only of "
+         "curriculum)"),
+        (["--method", "fixed_forward", "--looker-hold-prob", "0.5"], "(only of meta, joint, ia2c and curriculum)"),
+    ]:  # fmt: skip
+        assert cli.main([*flags, "--out", str(tmp_path / "run")]) == 2
+        err = capsys.readouterr().err
+        assert named in err and err.count("\n") == 1, err
+        assert not (tmp_path / "run").exists()
+    with pytest.raises(ValueError, match="method 'ia2c' does not read epsilon"):
+        TrainConfig.from_options(method="ia2c", epsilon=0.1)
+
+
+def test_a_preset_may_hold_other_methods_options_and_a_run_keeps_its_own(tmp_path):
+    """A preset is a recipe for every method (the named presets are); a run's config.yaml holds its method's."""
     preset = tmp_path / "p.yaml"
-    preset.write_text(yaml.safe_dump({"method": "ia2c", "curriculum_fraction": 0.5, "looker_lr": 1e-4}))
-    args = cli.build_parser().parse_args(["--config", str(preset), "--epsilon", "0.1", "--lr", "1e-3"])
-    warning = cli.unused_options_warning(args, cli.config_from_args(args))
-    assert warning == (
-        "activeperc-train: warning: method 'ia2c' does not use epsilon (read by meta only), "
-        "curriculum_fraction (read by curriculum only)"
-    )
-    args = cli.build_parser().parse_args(["--epsilon", "0.1", "--alpha", "0.2", "--curriculum-fraction", "0.5"])
-    warning = cli.unused_options_warning(args, cli.config_from_args(args))
-    assert warning.endswith("method 'meta' does not use curriculum_fraction (read by curriculum only)")
-    args = cli.build_parser().parse_args(["--method", "fixed_forward", "--looker-hold-prob", "0.5", "--looker-lr", "1"])
-    warning = cli.unused_options_warning(args, cli.config_from_args(args))
-    assert warning.endswith(
-        "looker_hold_prob (read by meta, joint, ia2c and curriculum only), looker_lr (read by meta and ia2c only)"
-    )
-    assert cli.unused_options_warning(cli.build_parser().parse_args(["--epsilon", "0.1"]), TrainConfig()) is None
+    preset.write_text(yaml.safe_dump({"meta": {"epsilon": 0.1}, "ia2c": {"looker_lr": 1e-4}, "run": {"seed": 2}}))
+    for method, options in (("meta", {"epsilon": 0.1}), ("ia2c", {"looker_lr": 1e-4}), ("joint", {})):
+        args = cli.build_parser().parse_args(["--config", str(preset), "--method", method])
+        config = cli.config_from_args(args)
+        assert config.method == method and config.run.seed == 2
+        assert all(getattr(config.options, name) == value for name, value in options.items())
+        assert set(config.to_dict()) == {"method", "run", "a2c", "network", method, "env"}
 
 
-def test_method_only_options_match_their_docs():
-    """A field documented as one method's ("'meta': ...") is listed as that method's alone."""
-    from activeperc_env.config import field_docs
-    from activeperc_rl.methods import METHOD_OPTIONS
+def test_method_options_are_each_methods_own_fields():
+    """The option tables come from the methods' option classes; no option name is both a method's and shared."""
+    from activeperc_rl.methods import METHOD_CLASSES
+    from activeperc_rl.recipe import METHOD_OPTIONS
 
-    docs = field_docs(TrainConfig)
-    documented = {name: doc.split("'")[1] for name, doc in docs.items() if doc.split()[0][-2:] == "':"}
-    assert len(documented) == 10  # epsilon, alpha, ..., looker_credit, looker_optimizer, curriculum_fraction
-    for name, method in documented.items():
-        assert METHOD_OPTIONS[name] == (method,), name
+    for name, readers in METHOD_OPTIONS.items():
+        assert name not in OPTION_SECTIONS
+        for method, cls in METHOD_CLASSES.items():
+            assert (name in {f.name for f in dataclasses.fields(cls.Options)}) == (method in readers), (name, method)
+    assert METHOD_OPTIONS["epsilon"] == ("meta",) and METHOD_OPTIONS["curriculum_fraction"] == ("curriculum",)
+    assert METHOD_CLASSES["fixed_forward"].Options() == METHOD_CLASSES["fixed_forward"].Options.from_dict(None)
 
 
 def test_preset_numbers_in_exponent_notation(tmp_path):
     """PyYAML reads 3e-5 as a string (YAML 1.1); presets read it as the number everyone means."""
     preset = tmp_path / "p.yaml"
-    preset.write_text("lr: 7e-4\nlooker_lr: 3E-5\nalpha: .5e-1\nframes: 2e6\nenv:\n  fov: 1e2\n")
+    preset.write_text(
+        "a2c:\n  lr: 7e-4\nmeta:\n  looker_lr: 3E-5\n  alpha: .5e-1\nrun:\n  frames: 2e6\nenv:\n  fov: 1e2\n"
+    )
     config = cli.config_from_args(cli.build_parser().parse_args(["--config", str(preset)]))
-    assert (config.lr, config.looker_lr, config.alpha, config.frames, config.env.fov) == (7e-4, 3e-5, 0.05, 2e6, 100.0)
-    assert type(config.frames) is int
+    options = config.options
+    assert (config.a2c.lr, options.looker_lr, options.alpha, config.run.frames, config.env.fov) == (
+        7e-4, 3e-5, 0.05, 2e6, 100.0
+    )  # fmt: skip
+    assert type(config.run.frames) is int
     config = cli.config_from_args(cli.build_parser().parse_args(["--frames", "3e5", "--channels", "8", "1.6e1"]))
-    assert (config.frames, config.channels) == (300_000, (8, 16))
+    assert (config.run.frames, config.network.channels) == (300_000, (8, 16))
 
 
 @pytest.mark.parametrize(
     ("text", "named"),
     [
-        ("frames: 2.5e-1\n", "TrainConfig.frames=0.25"),
+        ("run: {frames: 2.5e-1}\n", "run.frames=0.25"),
         ("env: {fov: '100'}\n", "EnvConfig.fov='100'"),
-        ("channels: 16\n", "TrainConfig.channels=16"),
+        ("network: {channels: 16}\n", "network.channels=16"),
+        ("frames: 300\n", "put 'frames' under 'run:'"),
+        ("epsilon: 0.1\n", "put 'epsilon' under its method's section ('meta:')"),
+        ("run: {epsilon: 0.1}\n", "unknown run option(s) ['epsilon']"),
+        ("meta: 3\n", "'meta' must be a mapping of options"),
         ("env: [1, 2]\n", "'env'"),
         ("env: []\n", "'env'"),
         ("env: false\n", "'env'"),
         ("method: meta\n  frames: [\n", "is not valid YAML at line 2, column 9: mapping values are not allowed here\n"),
         ("", "holds no options"),
-        ("fov: 100\n", "['fov'] are environment options: put them under 'env:'"),
+        ("fov: 100\n", "put 'fov' under 'env:'"),
         ("# frames: 300\n", "holds no options"),
-        ("frames: 10\nseed: 1\nframes: 20\n", "at line 3, column 1: option 'frames' is given twice\n"),
+        ("run:\n  frames: 10\n  seed: 1\n  frames: 20\n", "at line 4, column 3: option 'frames' is given twice\n"),
         ("env:\n  fov: 60\n  fov: 90\n", "at line 3, column 3: option 'fov' is given twice\n"),
         (b"frames: \xff\n", "is not UTF-8 text (byte 8)\n"),
     ],
@@ -796,7 +819,8 @@ def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
 def test_a_checkpoint_whose_networks_do_not_fit_its_config_is_one_line(tmp_path, capsys):
     out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
     state = load_checkpoint(out / "checkpoint.pt")
-    save_checkpoint(out / "checkpoint.pt", state | {"config": state["config"] | {"hidden_size": 64}})
+    network = state["config"]["network"] | {"hidden_size": 64}
+    save_checkpoint(out / "checkpoint.pt", state | {"config": state["config"] | {"network": network}})
     capsys.readouterr()
     assert evaluate.main([str(out), "--episodes", "2"]) == 2
     err = capsys.readouterr().err
@@ -851,7 +875,7 @@ def test_evaluate_names_what_it_cannot_play():
 
 
 def test_eval_is_reproducible_and_held_out(tmp_path, capsys, monkeypatch):
-    config = TrainConfig(env={"max_cycles": 10})
+    config = TrainConfig.from_options(env={"max_cycles": 10})
     made = []
     monkeypatch.setattr(evaluate, "make_env", lambda *a, **kw: made.append(make_env(*a, **kw)) or made[-1])
     a = evaluate.evaluate(config, episodes=6, seed=4)

@@ -1,4 +1,5 @@
-"""What a run leaves on disk: the checkpoint and the metrics log, both safe against a kill.
+"""What a run leaves on disk: the checkpoint (a method's networks, optimizers and rooms, for an exact resume) and the
+metrics log, both safe against a kill.
 
 ``checkpoint.pt`` is written to a temporary file in the same directory, flushed to disk and
 renamed over the old one (an atomic replace), so a kill at any moment leaves the previous
@@ -13,9 +14,12 @@ import io
 from pathlib import Path
 
 import torch
+import yaml
 
-from activeperc_rl.atomic import atomic_path
-from activeperc_rl.config import TrainConfig, load_yaml
+from activeperc_rl.config import load_yaml
+from activeperc_rl.method_base import Method
+from activeperc_rl.recipe import TrainConfig
+from activeperc_rl.runtime.atomic import atomic_path
 
 CHECKPOINT = "checkpoint.pt"
 METRICS = "metrics.csv"
@@ -57,15 +61,47 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     return state
 
 
-def restore_method(method, state: dict, path: str | Path) -> None:
-    """Load the networks and optimizers of the checkpoint ``state`` (read from ``path``) into ``method``.
+def restore_method(method: Method, state: dict, path: str | Path) -> None:
+    """Load the networks and optimizers of the checkpoint ``state`` (read from ``path``) into ``method``; each
+    optimizer keeps the step its config asks for (a portable run takes torch's fused Adam step, whatever the
+    checkpoint's optimizer took).
 
     Raises ``ValueError`` naming the file when they do not fit the method's networks.
     """
+    saved = state["method"]
+    if not isinstance(saved, dict) or not all(isinstance(saved.get(k), dict) for k in ("modules", "optimizers")):
+        raise ValueError(f"checkpoint {str(path)!r} is unusable: it holds no networks and optimizers")
+    if set(method.modules) != set(saved["modules"]):
+        raise ValueError(
+            f"checkpoint {str(path)!r} is unusable: its networks {sorted(saved['modules'])} do not match "
+            f"{sorted(method.modules)}"
+        )
     try:
-        method.load_state_dict(state["method"])
+        method.load_state_dict(saved)
     except ValueError as error:
         raise ValueError(f"checkpoint {str(path)!r} is unusable: {error}") from error
+    for optimizer in method.optimizers.values():
+        for group in optimizer.param_groups:  # the step the config asks for, not the saved one's
+            if "fused" in group:
+                group["fused"] = optimizer.defaults["fused"]
+
+
+def collection_state(method: Method) -> list[dict]:
+    """Where each of ``method``'s collectors' rooms stand between two rollouts
+    (:meth:`~activeperc_rl.collection.Rollouts.state`): with :func:`restore_collection` after ``method.start()``, a
+    resumed run with as many workers collects exactly what the uninterrupted run would have."""
+    return [collector.state() for collector in method.collectors]
+
+
+def restore_collection(method: Method, states: list[dict]) -> None:
+    """Put ``method``'s collectors where :func:`collection_state` left them; ``ValueError`` when they do not fit."""
+    if len(states) != len(method.collectors):
+        raise ValueError(f"its {len(states)} collectors' state does not fit this run's {len(method.collectors)}")
+    try:
+        for collector, state in zip(method.collectors, states, strict=True):
+            collector.load_state(state)
+    except (KeyError, TypeError, RuntimeError, ValueError) as error:  # a damaged or hand-edited checkpoint
+        raise ValueError(f"its collectors' state does not fit this run: {error}") from error
 
 
 RESUMABLE = (
@@ -79,14 +115,21 @@ RESUMABLE = (
     "checkpoint_every",
     "eval_episodes",
 )
-"""Options a resumed run may change; every other one must match the checkpoint's."""
+"""Options of the run's settings that a resumed run may change; every other one must match the checkpoint's."""
 
 
 def config_differences(saved: TrainConfig, config: TrainConfig) -> list[str]:
-    """Human-readable ``name: saved -> new`` for every option that differs, except those in ``RESUMABLE``."""
+    """Human-readable ``section.name: saved -> new`` for every option that differs, except those in ``RESUMABLE``."""
+    if saved.method != config.method:
+        return [f"method: {saved.method!r} -> {config.method!r}"]
     old, new = saved.to_dict(), config.to_dict()
-    differ = [f"{k}: {old[k]!r} -> {new[k]!r}" for k in old if k not in RESUMABLE and k != "env" and old[k] != new[k]]
-    differ += [f"env.{k}: {v!r} -> {new['env'][k]!r}" for k, v in old["env"].items() if new["env"][k] != v]
+    differ = []
+    for section, values in old.items():
+        if section == "method":
+            continue
+        for name, value in values.items():
+            if new[section][name] != value and not (section == "run" and name in RESUMABLE):
+                differ.append(f"{section}.{name}: {value!r} -> {new[section][name]!r}")
     return differ
 
 
@@ -139,6 +182,12 @@ class MetricsLog:
     def close(self) -> None:
         """Close the file."""
         self._file.close()
+
+
+def save_yaml(config: TrainConfig, path: str | Path) -> None:
+    """Write ``config`` as the run's ``config.yaml`` (written to a temporary file first, then renamed over ``path``)."""
+    with atomic_path(path) as temporary:
+        temporary.write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
 
 
 def load_run_config(out: str | Path) -> TrainConfig:

@@ -5,7 +5,7 @@ process trains into the directory: a second ``activeperc-train`` with the same `
 instead of interleaving its rows and checkpoints with the first one's. The kernel drops the lock
 when its process dies, however it dies, so a killed run never leaves the directory locked. Holding
 the lock, the process also removes the temporary files that a killed writer left behind
-(:func:`~activeperc_rl.atomic.remove_leftovers`).
+(:func:`~activeperc_rl.runtime.atomic.remove_leftovers`).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from activeperc_rl.atomic import remove_leftovers
-from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS
+from activeperc_rl.runtime.atomic import remove_leftovers
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS
 
 LOCK = ".lock"
 RUN_FILES = (CHECKPOINT, CONFIG, METRICS, EVAL)
