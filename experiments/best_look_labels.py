@@ -22,7 +22,7 @@ from pathlib import Path
 from statistics import fmean
 
 from activeperc_env.arguments import ArgumentParser, whole_number
-from activeperc_rl.atomic import atomic_path
+from activeperc_rl.runtime.atomic import atomic_path
 
 COLUMNS = (
     "run",

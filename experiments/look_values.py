@@ -29,9 +29,9 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 from activeperc_env.scripted import goal_in_view
-from activeperc_rl.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env
-from activeperc_rl.methods import make_method
+from activeperc_rl.recipe import make_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 
 GROUPS = ("not in view", "left third", "middle third", "right third")
 
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         split="eval",
         look_views=True,
-        frame_stack=config.frame_stack,
+        frame_stack=config.network.frame_stack,
         config=config.env,
     )
     torch.manual_seed(args.seed)

@@ -31,19 +31,19 @@ from torchrl.modules import GRUModule, ProbabilisticActor, set_recurrent_mode
 from torchrl.objectives import A2CLoss, ValueEstimators
 
 from activeperc_env.arguments import whole_number
-from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import MOVER, make_env
 from activeperc_rl.models import NUM_ACTIONS, make_encoder, observation_keys
+from activeperc_rl.recipe import TrainConfig
 
 MEMORY = (MOVER, "memory")
 
 
 def memory_actor_critic(config: TrainConfig, memory_size: int):
     """The mover's actor and critic: one encoder and one GRU shared, a linear head each; and the GRU."""
-    encoder = make_encoder(config.env, config.channels, config.hidden_size, config.bearing_bins)
+    encoder = make_encoder(config.env, config.network.channels, config.network.hidden_size, config.network.bearing_bins)
     embed = TensorDictModule(encoder, in_keys=observation_keys(MOVER, encoder), out_keys=[(MOVER, "embed")])
     gru = GRUModule(
-        input_size=config.hidden_size,
+        input_size=config.network.hidden_size,
         hidden_size=memory_size,
         in_keys=[(MOVER, "embed"), (MOVER, "recurrent_state"), "is_init"],
         out_keys=[MEMORY, ("next", MOVER, "recurrent_state")],
@@ -63,8 +63,8 @@ def memory_actor_critic(config: TrainConfig, memory_size: int):
 
 def memory_env(config: TrainConfig, looker_name: str, gru: GRUModule, rooms: int, split: str):
     """The batched env with the scripted looker inside each cycle, the init flags and the GRU's state."""
-    looker = ScriptedLooker(looker_name, config.env, rooms, config.seed)
-    env = make_env(rooms, looker=looker, seed=config.seed, split=split, config=config.env)
+    looker = ScriptedLooker(looker_name, config.env, rooms, config.run.seed)
+    env = make_env(rooms, looker=looker, seed=config.run.seed, split=split, config=config.env)
     return TransformedEnv(env, Compose(InitTracker(), gru.make_tensordict_primer()))
 
 
@@ -76,14 +76,14 @@ def outcomes(rollout) -> tuple[list[bool], int]:
 
 
 def train(config: TrainConfig, looker_name: str, memory_size: int):
-    """A2C of the memory mover for ``config.frames`` frames, printing its training success every 50,000 frames;
+    """A2C of the memory mover for ``config.run.frames`` frames, printing its training success every 50,000 frames;
     returns the actor and its GRU."""
     actor, critic, gru = memory_actor_critic(config, memory_size)
     loss = A2CLoss(
         actor,
         critic,
-        entropy_coeff=config.entropy_coeff,
-        critic_coeff=config.critic_coeff,
+        entropy_coeff=config.a2c.entropy_coeff,
+        critic_coeff=config.a2c.critic_coeff,
         loss_critic_type="l2",
         functional=False,
     )
@@ -93,17 +93,19 @@ def train(config: TrainConfig, looker_name: str, memory_size: int):
         sample_log_prob=(MOVER, "action_log_prob"),
         value="state_value",
     )
-    loss.make_value_estimator(ValueEstimators.GAE, gamma=config.gamma, lmbda=config.gae_lambda, deactivate_vmap=True)
+    loss.make_value_estimator(
+        ValueEstimators.GAE, gamma=config.a2c.gamma, lmbda=config.a2c.gae_lambda, deactivate_vmap=True
+    )
     params = list(dict.fromkeys([*actor.parameters(), *critic.parameters()]))
-    optimizer = torch.optim.Adam(params, lr=config.lr, eps=1e-5)
-    env = memory_env(config, looker_name, gru, config.num_envs, "train")
-    batch = config.num_envs * config.rollout_length
+    optimizer = torch.optim.Adam(params, lr=config.a2c.lr, eps=1e-5)
+    env = memory_env(config, looker_name, gru, config.run.num_envs, "train")
+    batch = config.run.num_envs * config.run.rollout_length
     collector = Collector(env, actor, frames_per_batch=batch, total_frames=-1)
     window: list[bool] = []
     frames = 0
     try:
         for rollout in collector:
-            rollout = rollout.reshape(config.num_envs, config.rollout_length)
+            rollout = rollout.reshape(config.run.num_envs, config.run.rollout_length)
             with set_recurrent_mode(True):
                 with torch.no_grad():
                     loss.value_estimator(rollout)
@@ -111,14 +113,14 @@ def train(config: TrainConfig, looker_name: str, memory_size: int):
                 total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
                 optimizer.zero_grad(set_to_none=True)
                 total.backward()
-                torch.nn.utils.clip_grad_norm_(params, config.max_grad_norm)
+                torch.nn.utils.clip_grad_norm_(params, config.a2c.max_grad_norm)
                 optimizer.step()
             collector.update_policy_weights_()
-            window = (window + outcomes(rollout)[0])[-config.success_window :]
+            window = (window + outcomes(rollout)[0])[-config.run.success_window :]
             frames += rollout.numel()
             if frames // 50_000 != (frames - rollout.numel()) // 50_000:
                 print(json.dumps({"frames": frames, "train_success": float(np.mean(window or [0]))}), flush=True)
-            if frames >= config.frames:
+            if frames >= config.run.frames:
                 break
     finally:
         collector.shutdown()
@@ -153,8 +155,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.frames < 1 or args.episodes < 1 or args.memory < 1:
         parser.error("--frames, --episodes and --memory must be >= 1")
     config = probe_config(args)
-    torch.manual_seed(config.seed)
-    torch.set_num_threads(config.torch_threads)
+    torch.manual_seed(config.run.seed)
+    torch.set_num_threads(config.run.torch_threads)
     start = time.perf_counter()
     actor, gru = train(config, args.looker, args.memory)
     success = held_out(config, args.looker, actor, gru, args.episodes)

@@ -15,7 +15,9 @@ import math
 
 import numpy as np
 
-from activeperc_env import MOVER_ACTIONS, EnvConfig, Simulator, names
+from activeperc_env import EnvConfig, Simulator, mover_actions, names
+from activeperc_env.core import MOVER_ACTIONS
+from activeperc_env.rooms import ROOMS
 
 
 def profile(action: int, cycles: int, seed: int, version: int = 1) -> list[tuple[float, float]]:
@@ -37,9 +39,9 @@ def random_moves(cycles: int, seed: int, num_envs: int = 32, version: int = 1) -
     sim = Simulator(EnvConfig(num_obstacles=0, max_cycles=10**6, version=version), num_envs=num_envs)
     rng = np.random.default_rng(seed)
     sim.reset(seeds=rng.integers(2**31, size=num_envs))
-    rows: dict[int, list] = {a: [] for a in range(len(MOVER_ACTIONS))}
+    rows: dict[int, list] = {a: [] for a in range(MOVER_ACTIONS)}
     for _ in range(cycles // num_envs):
-        actions = rng.integers(len(MOVER_ACTIONS), size=num_envs)
+        actions = rng.integers(MOVER_ACTIONS, size=num_envs)
         before = [sim.pose(i) for i in range(num_envs)]
         sim.move(actions)
         for i, (action, (xy, heading, _)) in enumerate(zip(actions, before, strict=True)):
@@ -58,20 +60,20 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=6)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--random-cycles", type=int, default=1280)
-    parser.add_argument("--version", type=int, choices=names.VERSIONS, default=EnvConfig().version)
+    parser.add_argument("--version", type=int, choices=tuple(ROOMS), default=EnvConfig().version)
     args = parser.parse_args()
     if args.cycles < 1:
         parser.error(f"--cycles must be >= 1, got {args.cycles}")
     if args.random_cycles < 32:
         parser.error(f"--random-cycles must be >= 32 (one move in each of the 32 rooms), got {args.random_cycles}")
-    for action, name in enumerate(MOVER_ACTIONS):
+    for action, name in enumerate(mover_actions(args.version)):
         steps = profile(action, args.cycles, args.seed, args.version)
         print(f"{name:>10}  metres: " + " ".join(f"{d:.3f}" for d, _ in steps))
         print(f"{'':>10}  degrees: " + " ".join(f"{t:+.1f}" for _, t in steps))
     print(f"uniformly random moves ({args.random_cycles} cycles), mean +- std:")
     for action, rows in random_moves(args.random_cycles, args.seed, version=args.version).items():
         (dist, turn), (dist_sd, turn_sd) = rows.mean(axis=0), rows.std(axis=0)
-        name = MOVER_ACTIONS[action]
+        name = mover_actions(args.version)[action]
         print(f"{name:>10}  forward {dist:.3f} +- {dist_sd:.3f} m, turn {turn:+.1f} +- {turn_sd:.1f} degrees")
 
 

@@ -30,10 +30,10 @@ import numpy as np  # noqa: E402
 from activeperc_env.arguments import ArgumentParser, whole_number  # noqa: E402
 from activeperc_env.core import HOLD  # noqa: E402
 from activeperc_env.scripted import goal_in_view, wrap  # noqa: E402
-from activeperc_rl.atomic import atomic_path  # noqa: E402
 from activeperc_rl.envs import LOOKER, MOVER, latest_view  # noqa: E402
 from activeperc_rl.evaluate import evaluate, load_policy  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
 COLUMNS = ("run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_outside_fov", "cycles")
 BEARING_BINS = np.linspace(-180, 180, 25)
@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(error))
     if looker is None:
         parser.error(f"{args.run!r} is a run of {config.method!r}, whose policy writes the look itself")
-    seed = config.seed if args.seed is None else args.seed
+    seed = config.run.seed if args.seed is None else args.seed
     records = {
         name: play(config, mover_policy, module, args.episodes, seed)
         for name, module in (("learned", looker), ("camera held", FixedLooker()))

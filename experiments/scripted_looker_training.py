@@ -26,10 +26,10 @@ from torch import nn
 
 from activeperc_env import EnvConfig, scripted
 from activeperc_env.arguments import ArgumentParser, whole_number
-from activeperc_env.names import VERSIONS
-from activeperc_rl.config import TrainConfig
+from activeperc_env.rooms import ROOMS
 from activeperc_rl.evaluate import MAX_ROOMS, evaluate
 from activeperc_rl.methods import FixedForward
+from activeperc_rl.recipe import TrainConfig, make_method
 
 
 class ScriptedLooker(nn.Module):
@@ -55,12 +55,12 @@ class MoverWithScriptedLooker(FixedForward):
 
     def start(self) -> None:
         """Build the environment, with the scripted looker in the loop."""
-        looker = ScriptedLooker(self.looker_name, self.config.env, self.config.num_envs, self.config.seed)
+        looker = ScriptedLooker(self.looker_name, self.env, self.run.num_envs, self.run.seed)
         self.collector = self._collector(self.actor, looker=looker)
 
     def policy(self):
         """The mover, and a fresh scripted looker for the evaluation's rooms."""
-        return self.actor, ScriptedLooker(self.looker_name, self.config.env, MAX_ROOMS, self.config.seed)
+        return self.actor, ScriptedLooker(self.looker_name, self.env, MAX_ROOMS, self.run.seed)
 
 
 def probe_arguments(prog: str, description: str, looker: str) -> ArgumentParser:
@@ -70,14 +70,14 @@ def probe_arguments(prog: str, description: str, looker: str) -> ArgumentParser:
     parser.add_argument("--frames", type=whole_number, default=300_000, help="training frames (300000)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the run (0)")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
-    parser.add_argument("--version", type=int, choices=VERSIONS, default=EnvConfig().version, help="room version")
+    parser.add_argument("--version", type=int, choices=ROOMS, default=EnvConfig().version, help="room version")
     parser.add_argument("--bearing-bins", type=whole_number, default=0, help="the mover's bearing layout (0: none)")
     return parser
 
 
 def probe_config(args) -> TrainConfig:
     """``fixed_forward``'s config with the probe's budget, seed, room and bearing layout."""
-    return TrainConfig(
+    return TrainConfig.from_options(
         method="fixed_forward",
         frames=args.frames,
         seed=args.seed,
@@ -93,15 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.frames < 1 or args.episodes < 1:
         parser.error("--frames and --episodes must be >= 1")
     config = probe_config(args)
-    torch.manual_seed(config.seed)
-    torch.set_num_threads(config.torch_threads)
+    torch.manual_seed(config.run.seed)
+    torch.set_num_threads(config.run.torch_threads)
     cls = FixedForward if args.looker == "fixed" else MoverWithScriptedLooker
     MoverWithScriptedLooker.looker_name = args.looker
-    method = cls(config, torch.device("cpu"))
-    method.start()
+    method = make_method(config, torch.device("cpu"), cls=cls)
     start, frames = time.perf_counter(), 0
     try:
-        while frames < config.frames:
+        while frames < config.run.frames:
             frames += method.iterate().frames
         mover, looker = method.policy()
         result = evaluate(config, mover, looker, episodes=args.episodes, seed=0)

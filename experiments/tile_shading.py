@@ -8,7 +8,7 @@ replays the same episode in a one-room simulator, and compares every room's view
 view, cycle by cycle. It prints how many views differ at all, in how many pixels, and how many pixels differ
 by more than one level of shade (an edge pixel that takes the colour of the surface beside it).
 
-    python experiments/tile_shading.py [--episodes 5] [--cycles 60] [--rooms 16]
+    python experiments/tile_shading.py [--episodes 5] [--cycles 60] [--rooms 16] [--version V]
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import argparse
 import numpy as np
 
 from activeperc_env import EnvConfig, Simulator
+from activeperc_env.rooms import DEFAULT, ROOMS
 
 
 def main() -> None:
@@ -26,12 +27,13 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--cycles", type=int, default=60)
     parser.add_argument("--rooms", type=int, default=16)
+    parser.add_argument("--version", type=int, choices=tuple(ROOMS), default=DEFAULT, help="the room (the default)")
     args = parser.parse_args()
     for flag, value in (("--episodes", args.episodes), ("--cycles", args.cycles), ("--rooms", args.rooms)):
         if value < 1:
             parser.error(f"{flag} must be >= 1, got {value}")
 
-    config, n = EnvConfig(), args.rooms
+    config, n = EnvConfig(version=args.version), args.rooms
     many, one = Simulator(config, num_envs=n), Simulator(config, num_envs=1)
     rng = np.random.default_rng(0)
     differing, beyond_one = [], []  # per view compared: pixels that differ at all, by more than one level

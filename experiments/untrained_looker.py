@@ -15,9 +15,9 @@ import argparse
 
 import torch
 
-from activeperc_rl.config import TrainConfig
 from activeperc_rl.envs import LOOKER, MOVER, make_env
 from activeperc_rl.models import RandomPolicy, make_actor, make_encoder, start_holding
+from activeperc_rl.recipe import TrainConfig
 
 LOOKS = ("pan left", "hold", "pan right")
 
@@ -36,7 +36,8 @@ def main() -> None:
     if not 0.0 <= args.hold_prob < 1.0:
         parser.error(f"--hold-prob must be in [0, 1), got {args.hold_prob}")
 
-    config = TrainConfig()
+    config = TrainConfig.from_options(version=1)  # the room the untrained looker was measured in (docs/training.md)
+    network = config.network
     torch.manual_seed(0)  # the random play
     env = make_env(args.rooms, seed=0, looker=RandomPolicy((LOOKER,)))
     views = env.rollout(args.cycles, RandomPolicy((MOVER,)), break_when_any_done=False)
@@ -45,7 +46,7 @@ def main() -> None:
     print(f"argmax of an untrained looker over {views.numel()} views ({', '.join(LOOKS)}):")
     for seed in range(args.seeds):
         torch.manual_seed(seed)
-        actor = make_actor(make_encoder(config.env, config.channels, config.hidden_size), config.hidden_size, LOOKER)
+        actor = make_actor(make_encoder(config.env, network.channels, network.hidden_size), network.hidden_size, LOOKER)
         if args.hold_prob:
             start_holding(actor, args.hold_prob)
         with torch.no_grad():

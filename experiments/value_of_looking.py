@@ -28,7 +28,7 @@ import numpy as np
 
 from activeperc_env import EnvConfig
 from activeperc_env.arguments import ArgumentParser, add_config_flags, whole_number
-from activeperc_env.names import VERSIONS
+from activeperc_env.rooms import ROOMS
 from activeperc_env.scripted import LOOKERS, MOVERS, play
 
 # every (mover, looker) pair, in table order
@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         "--pairs", nargs="+", metavar="MOVER:LOOKER", help="only these pairs, e.g. vision:fixed vision:scan (all)"
     )
     parser.add_argument("--csv", type=Path, help="write the rows to this CSV file")
-    add_config_flags(parser.add_argument_group("environment"), EnvConfig, {"version": VERSIONS}, skip=("fov",))
+    add_config_flags(parser.add_argument_group("environment"), EnvConfig, {"version": tuple(ROOMS)}, skip=("fov",))
     args = parser.parse_args(argv)
     if args.layouts < 1:
         parser.error(f"--layouts={args.layouts} is invalid: expected an int >= 1")

@@ -82,12 +82,14 @@ def test_the_memory_movers_loss_replays_the_rollout_as_it_was_collected(monkeypa
     from torchrl.collectors import Collector
     from torchrl.modules import set_recurrent_mode
 
-    from activeperc_rl.config import TrainConfig
+    from activeperc_rl.recipe import TrainConfig
 
     monkeypatch.syspath_prepend(str(EXPERIMENTS))
     from memory_mover_training import MOVER, memory_actor_critic, memory_env
 
-    config = TrainConfig(method="fixed_forward", channels=(8,), hidden_size=32, env={"version": 2, "max_cycles": 10})
+    config = TrainConfig.from_options(
+        method="fixed_forward", channels=(8,), hidden_size=32, env={"version": 2, "max_cycles": 10}
+    )
     actor, _, gru = memory_actor_critic(config, 16)
     collector = Collector(memory_env(config, "scan", gru, 4, "train"), actor, frames_per_batch=64, total_frames=192)
     starts = 0
@@ -131,7 +133,7 @@ def test_pan_vs_bearing_plays_the_evaluations_episodes(tmp_path):
     out = tmp_path / "run"
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
     train = [*tiny, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "12", "--seed", "3", "--out", str(out)]
-    train += ["--frame-stack", "2"]  # the goal is looked for in the latest view
+    train += ["--frame-stack", "2", "--bearing-bins", "0"]  # the goal is looked for in the latest view
     assert cli.main(train) == 0
     argv = [str(out), "--episodes", "6", "--figure", str(tmp_path / "f.png"), "--csv", str(tmp_path / "r.csv")]
     assert pan_vs_bearing.main(argv) == 0

@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 from conftest import PseudoTerminal, default_stop_signals
 
-from activeperc_rl import portable
-from activeperc_rl.config import TrainConfig, load_yaml
+from activeperc_rl import cli
+from activeperc_rl.config import load_yaml
+from activeperc_rl.recipe import TrainConfig, preset
+from activeperc_rl.runtime import portable
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG1 = ROOT / "experiments" / "fig1"
@@ -45,29 +47,54 @@ def read_csv(path):
         return list(csv.DictReader(f))
 
 
-def test_one_config_per_method_and_fov(sweep):
-    configs = sweep.find_configs()
+@pytest.mark.parametrize("room", ["v0", "v3"])
+def test_one_whole_preset_per_method_and_fov_in_each_room(sweep, room):
+    """Each room's folder holds Figure 1's twelve runs; each preset is the room's recipe (the pilot's in v0, the
+    defaults in v3) with its method, epsilon and field of view, and names every option of the recipe itself."""
+    configs = sweep.find_configs(root=FIG1 / "configs" / room)
     assert [(sweep.Task(p, 0).method, sweep.Task(p, 0).fov) for p in configs] == [
         (m, f) for m in sweep.METHODS for f in (60, 100)
     ]
+    recipe = preset("pilot") if room == "v0" else {}
     for path in configs:
         task = sweep.Task(path, 0)
-        config = TrainConfig.from_dict(load_yaml(path))
-        assert config.env.fov == task.fov
-        assert config.method == ("meta" if task.method.startswith("meta") else task.method)
+        values = load_yaml(path)
+        config = TrainConfig.from_dict(values)
+        flags = {"method": config.method, "fov": task.fov}
         if task.method.startswith("meta"):
-            assert config.epsilon == float(task.method.removeprefix("meta_eps"))
-        # only the method, epsilon, fov and the pilot's room (v0) are set: everything else is the default
-        default = TrainConfig(method=config.method, epsilon=config.epsilon, env={"version": 0, "fov": config.env.fov})
-        assert config == default
+            flags["epsilon"] = float(task.method.removeprefix("meta_eps"))
+        frames = {"frames": config.run.frames}  # the sweep gives each run its budget
+        assert config == TrainConfig.from_dict(recipe, flags | frames), path.name
+        assert values["env"]["version"] == int(room[1]) and "bearing_bins" in values["network"], path.name
+
+
+def test_the_default_rooms_presets_are_the_committed_room_v3_runs(sweep):
+    """experiments/results/v3_bearing ran the pilot's presets with the room v3 options after --: the v3 presets
+    are those configs, so its sweep.json names them and no options."""
+    room_v3 = {"version": "3", "looker_credit": "best_look", "looker_lr": "3e-4", "bearing_bins": "30"}
+    for path in sweep.find_configs(root=FIG1 / "configs" / "v3"):
+        method = TrainConfig.from_dict(load_yaml(path)).method
+        readers = {"looker_credit": ("meta",), "looker_lr": ("meta", "ia2c")}
+        flags = ["--config", str(FIG1 / "configs" / "v0" / path.name)]
+        for name, value in room_v3.items():  # the sweep passed them all; the old trainer ignored the unread ones
+            if method in readers.get(name, (method,)):
+                flags += [f"--{name.replace('_', '-')}", value]
+        assert cli.config_from_args(cli.build_parser().parse_args(flags)) == TrainConfig.from_dict(load_yaml(path))
+    for folder in ("v3_bearing", "v3_bearing_600k"):
+        settings = json.loads((ROOT / "experiments" / "results" / folder / "sweep.json").read_text())
+        assert (settings["configs"], settings["options"]) == ("experiments/fig1/configs/v3", [])
 
 
 def test_ablations_change_one_option_of_meta_eps03_fov60(sweep):
-    reference = TrainConfig.from_dict(load_yaml(FIG1 / "configs" / "meta_eps0.3_fov60.yaml")).to_dict()
+    v0 = FIG1 / "configs" / "v0"
+    reference = TrainConfig.from_dict(load_yaml(v0 / "meta_eps0.3_fov60.yaml")).to_dict()
     changed = {}
-    for path in sweep.find_configs(ablations=True):
+    for path in sweep.find_configs(ablations=True, root=v0):
         values = TrainConfig.from_dict(load_yaml(path)).to_dict()
-        changed[path.stem] = {k: v for k, v in values.items() if v != reference[k]}
+        sections = [key for key in values if key != "method"]
+        changed[path.stem] = {
+            k: v for section in sections for k, v in values[section].items() if v != reference[section][k]
+        }
     assert changed == {
         "meta_eps0.3_independent_seeds_fov60": {"shared_seeds": False},
         "meta_eps0.3_alpha0.01_fov60": {"alpha": 0.01},
@@ -178,7 +205,7 @@ def test_ctrl_c_leaves_resumable_runs(sweep, tmp_path):
     assert (runs / "joint_fov60" / "seed0" / "checkpoint.pt").is_file()
     assert not (runs / "joint_fov60" / "seed0" / "eval.json").exists()
     assert "checkpoint saved" in (runs / "joint_fov60" / "seed0" / "train.log").read_text()
-    task = sweep.Task(FIG1 / "configs" / "joint_fov60.yaml", 0)
+    task = sweep.Task(FIG1 / "configs" / "v3" / "joint_fov60.yaml", 0)
     assert "--resume" in sweep.train_command(task, task.run_dir(runs), 100000, 100, [])
 
 
@@ -235,7 +262,7 @@ def test_an_error_in_the_sweep_stops_the_runs_it_started(sweep, tmp_path, monkey
     monkeypatch.setattr(sweep, "POLL_S", 0.0)
     monkeypatch.setattr(sweep, "is_finished", lambda *args: next(checks, True))
     monkeypatch.setattr(sweep, "export_run", fail)
-    tasks = [sweep.Task(FIG1 / "configs" / name, 0) for name in ("joint_fov60.yaml", "ia2c_fov60.yaml")]
+    tasks = [sweep.Task(FIG1 / "configs" / "v3" / name, 0) for name in ("joint_fov60.yaml", "ia2c_fov60.yaml")]
     with pytest.raises(ValueError, match="the disk is full"):
         sweep.run_sweep(tasks, 64, tmp_path / "runs", tmp_path / "results" / "summary.csv", 2, [None, None])
     assert slow.signals == [signal.SIGTERM] and quick.signals == []
@@ -334,7 +361,7 @@ def test_a_run_counts_as_finished_only_with_an_evaluation_of_its_last_frames(swe
     (run / "metrics.csv").write_text("frames,success_rate\n5120,0.1\n16640,0.2\n16900,0.")  # a torn last row
     assert not sweep.is_finished(run, 2000, 100)
     torch.save({"config": TrainConfig().to_dict(), "method": {}, "frames": 16640}, run / "checkpoint.pt")
-    task = sweep.Task(FIG1 / "configs" / "fixed_forward_fov60.yaml", 0)
+    task = sweep.Task(FIG1 / "configs" / "v3" / "fixed_forward_fov60.yaml", 0)
     command = sweep.train_command(task, run, 2000, 100, [])
     assert command[command.index("--frames") + 1] == "16640" and "--resume" in command
 
@@ -429,7 +456,7 @@ def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys, monkeypatch
         sweep.main(["--seeds", "0", "1", "0", "--dry-run"])
     assert "[0] given more than once" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        sweep.main(["--only", "meta_eps0.3_alpha0.01_fov60", "--dry-run"])
+        sweep.main(["--room", "v0", "--only", "meta_eps0.3_alpha0.01_fov60", "--dry-run"])
     assert "ablations: add --ablations" in capsys.readouterr().err
     (tmp_path / "summary.csv").write_text((FIG1 / "results" / "summary.csv").read_text())
     (tmp_path / "doc.md").write_text("no markers here\n")
@@ -489,10 +516,13 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     readme = (ROOT / "README.md").read_text()
     flat = " ".join(readme.split())
     settings = json.loads(summary.with_name("sweep.json").read_text())
-    first = next(line for line in readme.splitlines() if "activeperc-train " in line).split("activeperc-train ")[1]
-    assert first.split() == [*settings["options"], "--frames", str(settings["frames"])]
+    first = next(line for line in readme.splitlines() if "activeperc-train" in line)
+    assert first.endswith("&& activeperc-train")  # the defaults, which are the sweep's v3 preset at its budget
+    preset = TrainConfig.from_dict(load_yaml(FIG1 / "configs" / "v3" / "meta_eps0.3_fov60.yaml"))
+    assert TrainConfig() == preset.replace(frames=settings["frames"])
+    assert (settings["configs"], settings["options"]) == ("experiments/fig1/configs/v3", [])
     assert f"--frames {settings['frames']}" in flat.split("made by")[1].split("runs/v3_600k")[0]
-    assert f"--results experiments/results/v3_bearing_600k -- {' '.join(settings['options'])}" in flat
+    assert "--results experiments/results/v3_bearing_600k` (the presets of `experiments/fig1/configs/v3/`" in flat
     success = {}
     for method in ("meta_eps0.3", "fixed_forward"):
         runs = [r for r in rows if r["method"] == method]
@@ -506,11 +536,35 @@ def test_readme_quotes_the_committed_seeds_of_its_command(aggregate):
     printout = next(
         r
         for r in read_csv(ROOT / "experiments" / "results" / "room_v3.csv")
-        if r["command"] == f"activeperc-train {first}" and r["seeds"] == "0"
+        if r["command"] == "activeperc-train" and r["seeds"] == "0"
     )
     assert float(printout["success"]) == float(seed0["final_success_rate"])
     assert f"| the same mover, camera held forward | {printout['camera_held']} | |" in readme
     assert "by {:+.2f} ± {:.2f}".format(*aggregate.paired_difference(rows, "meta_eps0.3", 60)[1:]) in readme
+
+
+def test_readme_quotes_the_default_command_on_unquoted_seeds(aggregate):
+    """The README's numbers of its command on seeds 5-9 are experiments/results/v3_600k_seeds5-9's: the paired lead
+    over fixed_forward (its interval above 0), both spreads and the camera-held range; the folder ran the v3 presets
+    with no options."""
+    folder = ROOT / "experiments" / "results" / "v3_600k_seeds5-9"
+    rows = read_csv(folder / "summary.csv")
+    settings = json.loads((folder / "sweep.json").read_text())
+    assert (settings["configs"], settings["options"], settings["eval_episodes"]) == (
+        "experiments/fig1/configs/v3",
+        [],
+        200,
+    )
+    seeds, mean, half = aggregate.paired_difference(rows, "meta_eps0.3", 60)
+    assert seeds == [5, 6, 7, 8, 9] and mean - half > 0
+    flat = " ".join((ROOT / "README.md").read_text().split())
+    spreads = [
+        "{:.2f} ± {:.2f}".format(*aggregate.mean_ci([float(r["final_success_rate"]) for r in rows if r["method"] == m]))
+        for m in ("meta_eps0.3", "fixed_forward")
+    ]
+    assert f"by {mean:+.2f} ± {half:.2f} on 200 held-out layouts ({spreads[0]} against {spreads[1]}" in flat
+    held = [float(r["success"]) for r in read_csv(folder / "pan_vs_bearing.csv") if r["looker"] == "camera held"]
+    assert len(held) == 5 and f"falls to {min(held):.2f}-{max(held):.2f} with the camera held forward" in flat
 
 
 def test_readme_quotes_figure_1_in_room_v3(aggregate):

@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # sweep.py sits next t
 
 from sweep import HERE, method_rank, read_summary  # noqa: E402
 
-from activeperc_rl.atomic import atomic_path  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
 ROOT = HERE.parent.parent
 DOC = ROOT / "docs" / "reproduction.md"

@@ -7,10 +7,10 @@ the seed is the first from 0 whose goal is hidden from the forward view at 60 de
 ``experiments/goal_visibility.py``). The views are the images the agents get (80x60 by default), enlarged
 without smoothing.
 
-Writes ``docs/figures/fig1_map.png`` and ``docs/figures/fig1_obs.png``::
+Writes ``docs/figures/fig1_map.png`` and ``docs/figures/fig1_obs.png`` (of the default room; ``--version`` another)::
 
     python experiments/fig1/figures.py
-    python experiments/fig1/figures.py --seed 7 --out /tmp/figures
+    python experiments/fig1/figures.py --seed 7 --version 0 --out /tmp/figures
 """
 
 from __future__ import annotations
@@ -31,18 +31,20 @@ from goal_visibility import MIN_PIXELS, goal_pixel_counts  # noqa: E402
 
 import activeperc_env  # noqa: E402, F401  (sets MUJOCO_GL=egl when headless, before mujoco is imported)
 from activeperc_env import EnvConfig, Simulator  # noqa: E402
-from activeperc_rl.atomic import atomic_path  # noqa: E402
+from activeperc_env.rooms import DEFAULT, ROOMS  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 FOVS = (60.0, 100.0)
 SEARCH = 200  # seeds tried when looking for one whose goal only the wide view shows
 
 
-def views(seed: int, fovs=FOVS) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The map (narrowest fov's view cone) and one first-person view per fov, all from room ``seed``'s start."""
+def views(seed: int, fovs=FOVS, version: int = DEFAULT) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The map (narrowest fov's view cone) and one first-person view per fov, all from the start of layout ``seed``
+    of room ``version``."""
     images, first_map = [], None
     for fov in fovs:
-        sim = Simulator(EnvConfig(fov=fov))
+        sim = Simulator(EnvConfig(fov=fov, version=version))
         sim.reset(seeds=[seed])
         images.append(sim.render()[0])
         if first_map is None:
@@ -51,9 +53,10 @@ def views(seed: int, fovs=FOVS) -> tuple[np.ndarray, list[np.ndarray]]:
     return first_map, images
 
 
-def revealing_seed(limit: int = SEARCH) -> int:
-    """The first seed whose goal is hidden from the forward view at 60 degrees and visible at 100."""
-    narrow, wide = (Simulator(EnvConfig(fov=fov), num_envs=limit) for fov in FOVS)
+def revealing_seed(limit: int = SEARCH, version: int = DEFAULT) -> int:
+    """The first seed whose goal is hidden from the forward view at 60 degrees and visible at 100 in room
+    ``version``."""
+    narrow, wide = (Simulator(EnvConfig(fov=fov, version=version), num_envs=limit) for fov in FOVS)
     seeds = list(range(limit))
     narrow.reset(seeds=seeds)
     wide.reset(seeds=seeds)
@@ -67,13 +70,15 @@ def revealing_seed(limit: int = SEARCH) -> int:
     return int(found[0])
 
 
-def save_figures(seed: int, out: Path) -> list[Path]:
-    """Write ``fig1_map.png`` and ``fig1_obs.png`` of room ``seed`` into ``out``; returns their paths."""
-    room_map, images = views(seed)
+def save_figures(seed: int, out: Path, version: int = DEFAULT) -> list[Path]:
+    """Write ``fig1_map.png`` and ``fig1_obs.png`` of layout ``seed`` of room ``version`` into ``out``; returns
+    their paths."""
+    room_map, images = views(seed, version=version)
     out.mkdir(parents=True, exist_ok=True)
     figure, axis = plt.subplots(figsize=(6.4, 4.8))
     axis.imshow(room_map)
-    axis.set_title(f"(a) bird's-eye view, seed {seed}\nred: goal; cone: {FOVS[0]:.0f} degree view; white: heading")
+    title = f"(a) bird's-eye view, room v{version}, seed {seed}"
+    axis.set_title(f"{title}\nred: goal; cone: {FOVS[0]:.0f} degree view; white: heading")
     axis.axis("off")
     paths = [out / "fig1_map.png", out / "fig1_obs.png"]
     _save(figure, paths[0])
@@ -98,13 +103,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, help="layout seed (default: the first that only 100 degrees reveals)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures", help="output folder")
+    parser.add_argument("--version", type=int, choices=tuple(ROOMS), default=DEFAULT, help="the room (the default)")
     args = parser.parse_args(argv)
     if args.seed is not None and args.seed < 0:
         parser.error(f"--seed={args.seed} is invalid: expected an int >= 0")
     if args.out.exists() and not args.out.is_dir():
         parser.error(f"--out {str(args.out)!r} is a file: give a folder")
-    seed = revealing_seed() if args.seed is None else args.seed
-    for path in save_figures(seed, args.out):
+    seed = revealing_seed(version=args.version) if args.seed is None else args.seed
+    for path in save_figures(seed, args.out, args.version):
         print(f"wrote {path}")
     return 0
 

@@ -36,8 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # aggregate.py sits ne
 from aggregate import replace_between  # noqa: E402
 from sweep import read_rows  # noqa: E402
 
-from activeperc_rl.atomic import atomic_path  # noqa: E402
 from activeperc_rl.config import load_yaml  # noqa: E402
+from activeperc_rl.recipe import TrainConfig  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
 COLUMNS = ("run", "frames", "success_rate", "max_pan_rate", "min_entropy", "pan_rate", "looker_entropy", "phi2")
 DETERMINISTIC = 0.05  # an entropy under this (nats) is a near-deterministic look
@@ -84,7 +85,7 @@ def run_row(run_dir: Path, last: int) -> dict:
     pans, entropies = scalars["meta/e1_pan_rate"], scalars["looker/entropy"]
     if pans and entropies:
         pan, entropy = fmean(pans[-last:]), fmean(entropies[-last:])
-        hold_prob = load_yaml(run_dir / "config.yaml")["looker_hold_prob"]
+        hold_prob = TrainConfig.from_saved(load_yaml(run_dir / "config.yaml")).options.looker_hold_prob
         if abs(entropy - start_entropy(hold_prob)) <= UNCHANGED:
             phi2 = "start"
         elif entropy < DETERMINISTIC:

@@ -1,9 +1,10 @@
 """Run the Figure 1 sweep: every method at both fields of view, several seeds, one frame budget.
 
 Each (config, seed) is one ``activeperc-train`` run in its own process, in ``RUNS/CONFIG/seedS``
-(checkpoints, TensorBoard, the full metrics.csv and the process's log ``train.log``). Configs are
-``configs/NAME_fovF.yaml`` (``configs/ablations/`` with ``--ablations``); every option they do not name
-is the default of ``TrainConfig`` / ``EnvConfig``, and every run gets the same ``--frames``.
+(checkpoints, TensorBoard, the full metrics.csv and the process's log ``train.log``). Configs are whole presets,
+one folder per room: ``configs/ROOM/NAME_fovF.yaml`` (``configs/ROOM/ablations/`` with ``--ablations``), ``--room v3``
+(the default room, the default) or ``--room v0`` (the paper-faithful room of the pilot); every run gets the same
+``--frames``.
 
 When a run has finished, its training curve is exported to ``RESULTS/runs/CONFIG_seedS.csv`` (frames, episodes
 finished so far, success_rate, mean_return; at most 200 rows) and its row is merged into ``RESULTS/summary.csv``
@@ -14,8 +15,8 @@ Resumable: run the same command again and finished runs are skipped, interrupted
 their checkpoint, and a larger ``--frames`` with a new ``--results`` folder continues finished runs to the new
 budget. A run counts as finished when its ``eval.json`` is of its last logged frames (not of an earlier budget
 it was continued from), of ``--frames`` or more, over ``--eval-episodes`` episodes. A results folder holds one
-budget: its ``sweep.json`` pins ``--frames``, ``--eval-episodes`` and the options after ``--`` (and lists the CPUs
-that ran it: outside ``--portable``, runs repeat on the same kind of CPU only), and a sweep with
+budget: its ``sweep.json`` pins ``--frames``, ``--eval-episodes``, the configs' folder and any options after ``--``
+(and lists the CPUs that ran it: outside ``--portable``, runs repeat on the same kind of CPU only), and a sweep with
 others is refused (so the committed pilot's rows are never replaced by another budget's, nor averaged with runs
 of other options); a run directory continued to a larger budget is skipped by a sweep of a smaller one (its
 runs of that budget are gone). Ctrl-C stops every run cleanly (each saves its checkpoint first; a second Ctrl-C
@@ -29,14 +30,16 @@ learner use that group only. Each run uses the GPU when one is present (``device
 
 Examples (from the repository root)::
 
-    python experiments/fig1/sweep.py --frames 300000 --seeds 0 1 2 3 4    # the committed CPU pilot's runs
-    python experiments/fig1/sweep.py --frames 2000000 --seeds 0 1 2 --cores-per-job 2 \
+    python experiments/fig1/sweep.py --seeds 0 1 2 3 4              # Figure 1 in the default room, 1,000,000 frames
+    python experiments/fig1/sweep.py --room v0 --seeds 0 1 2 3 4    # the committed CPU pilot's runs (300,000 frames)
+    python experiments/fig1/sweep.py --room v0 --frames 2000000 --seeds 0 1 2 --cores-per-job 2 \
         --results experiments/fig1/results/frames2m
     python experiments/fig1/sweep.py --only meta_eps0.3_fov60 --seeds 0 --runs /tmp/envs32 \
         --results /tmp/envs32/results -- --num-envs 32
-    python experiments/fig1/sweep.py --ablations --frames 300000 --seeds 0 1 2
+    python experiments/fig1/sweep.py --room v0 --ablations --seeds 0 1 2
 
-Arguments after ``--`` go to every ``activeperc-train`` call unchanged.
+Arguments after ``--`` go to every ``activeperc-train`` call (a variant of the presets), a method's option to the runs
+of the methods that have it only.
 Then ``python experiments/fig1/aggregate.py --results RESULTS`` (the same folder) draws the curves and prints the
 table; for the committed folder it updates docs/reproduction.md and docs/figures.
 """
@@ -59,15 +62,19 @@ import numpy as np
 
 from activeperc_env.checks import is_seed
 from activeperc_env.core import usable_cpus
-from activeperc_rl import portable
-from activeperc_rl.atomic import atomic_path
-from activeperc_rl.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS, load_checkpoint
+from activeperc_rl import cli
 from activeperc_rl.config import load_yaml
-from activeperc_rl.rundir import run_files
-from activeperc_rl.signals import stop_raises_interrupt
+from activeperc_rl.recipe import METHOD_OPTIONS, TrainConfig
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, CONFIG, EVAL, METRICS, load_checkpoint
+from activeperc_rl.runtime.rundir import run_files
+from activeperc_rl.runtime.signals import stop_raises_interrupt
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
+ROOMS = {"v3": (HERE.parent / "results" / "v3_bearing", 1_000_000), "v0": (HERE / "results", 300_000)}
+"""Each room's folder of presets (``configs/ROOM``): its committed results folder and frame budget."""
 METHODS = ("meta_eps0.1", "meta_eps0.3", "fixed_forward", "joint", "ia2c", "curriculum")
 """The paper's methods, in the order the sweep runs and the figures list them."""
 SUMMARY_COLUMNS = (
@@ -121,8 +128,9 @@ class Task:
         return runs / self.name / f"seed{self.seed}"
 
 
-def find_configs(ablations: bool = False, only: list[str] | None = None, root: Path = CONFIGS) -> list[Path]:
-    """The sweep's config files, in the paper's method order and field of view 60 before 100.
+def find_configs(ablations: bool = False, only: list[str] | None = None, root: Path = CONFIGS / "v3") -> list[Path]:
+    """The sweep's config files in the room folder ``root``, in the paper's method order and field of view 60 before
+    100.
 
     ``only`` keeps the configs with those names (``ValueError`` naming any that does not exist).
     """
@@ -174,7 +182,7 @@ def continued_past(run_dir: Path, frames: int) -> int | None:
     if not (run_dir / CHECKPOINT).is_file() or not path.is_file():
         return None
     try:
-        budget = int(load_yaml(path)["frames"])
+        budget = TrainConfig.from_saved(load_yaml(path)).run.frames
     except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path} is not a run's config ({error}): move the run directory away") from None
     return budget if budget > frames else None
@@ -207,8 +215,8 @@ def check_settings(results: Path, settings: dict, write: bool) -> None:
 
 
 def record_machine(results: Path) -> None:
-    """Add this machine (:func:`~activeperc_rl.portable.machine`) to the ``machines`` that made the folder's rows,
-    in its :data:`SETTINGS` file: runs outside portable mode repeat on the same kind of CPU only."""
+    """Add this machine (:func:`~activeperc_rl.runtime.portable.machine`) to the ``machines`` that made the folder's
+    rows, in its :data:`SETTINGS` file: runs outside portable mode repeat on the same kind of CPU only."""
     path, machine = results / SETTINGS, portable.machine()
     settings = json.loads(path.read_text())
     if machine not in settings.setdefault("machines", []):
@@ -247,7 +255,24 @@ def train_command(task: Task, run_dir: Path, frames: int, eval_episodes: int, ex
     else:
         command = [sys.executable, "-m", "activeperc_rl.cli", "--out", str(run_dir), "--frames", str(frames)]
         command += ["--config", str(task.config), "--seed", str(task.seed)]
-    return command + ["--eval-episodes", str(eval_episodes), "--no-progress", *extra]
+    return command + ["--eval-episodes", str(eval_episodes), "--no-progress", *read_by(task.config, extra)]
+
+
+def read_by(config: Path, extra: list[str]) -> list[str]:
+    """The options after ``--`` that the run of the preset ``config`` reads: a method's option goes to the runs of
+    the methods that have it only (``activeperc-train`` refuses a flag its method does not read)."""
+    method = TrainConfig.from_dict(load_yaml(config)).method
+    actions = {flag: action for action in cli.build_parser()._actions for flag in action.option_strings}
+    kept, i = [], 0
+    while i < len(extra):
+        flag = extra[i].split("=", 1)[0]
+        action = actions.get(flag)
+        takes = 0 if action is None or action.nargs == 0 or "=" in extra[i] else 1
+        readers = METHOD_OPTIONS.get(action.dest, (method,)) if action is not None else (method,)
+        if method in readers:
+            kept += extra[i : i + 1 + takes]
+        i += 1 + takes
+    return kept
 
 
 def export_run(task: Task, run_dir: Path, results: Path) -> dict:
@@ -469,17 +494,22 @@ def main(argv: list[str] | None = None) -> int:
     extra = argv[argv.index("--") + 1 :] if "--" in argv else []
     argv = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=300_000, help="frame budget of every run (default 300000)")
+    parser.add_argument("--room", choices=ROOMS, default="v3", help="the room's presets, configs/ROOM (default v3)")
+    parser.add_argument("--frames", type=int, help="frame budget of every run (default: the room's, v3 1000000)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="seeds of every config (default 0 1 2)")
     parser.add_argument("--only", nargs="+", metavar="CONFIG", help="run only these configs (names without .yaml)")
     parser.add_argument("--ablations", action="store_true", help="run configs/ablations/ instead of Figure 1's")
     parser.add_argument("--jobs", type=int, help="runs at once (default: CPUs // cores-per-job)")
     parser.add_argument("--cores-per-job", type=int, default=1, help="CPUs each run is pinned to (default 1)")
     parser.add_argument("--eval-episodes", type=int, default=100, help="held-out episodes of the final evaluation")
-    parser.add_argument("--runs", type=Path, default=HERE / "runs", help="run directories (default fig1/runs)")
-    parser.add_argument("--results", type=Path, default=HERE / "results", help="exported results (fig1/results)")
+    parser.add_argument("--runs", type=Path, help="run directories (default fig1/runs/ROOM)")
+    parser.add_argument("--results", type=Path, help="exported results (default: the room's committed folder)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs and their state, run nothing")
     args = parser.parse_args(argv)
+    results, frames = ROOMS[args.room]
+    args.frames = frames if args.frames is None else args.frames
+    args.results = results if args.results is None else args.results
+    args.runs = HERE / "runs" / args.room if args.runs is None else args.runs
     try:
         if args.frames < 1 or args.eval_episodes < 1:
             raise ValueError(f"--frames={args.frames} and --eval-episodes={args.eval_episodes} must be >= 1")
@@ -488,7 +518,7 @@ def main(argv: list[str] | None = None) -> int:
         twice = sorted({seed for seed in args.seeds if args.seeds.count(seed) > 1})
         if twice:
             raise ValueError(f"--seeds {args.seeds}: {twice} given more than once")
-        configs = find_configs(args.ablations, args.only)
+        configs = find_configs(args.ablations, args.only, CONFIGS / args.room)
         groups = core_groups(args.jobs, args.cores_per_job)
         if groups[0] is None and args.cores_per_job > 1:
             print(
@@ -498,7 +528,8 @@ def main(argv: list[str] | None = None) -> int:
             )
         tasks = [Task(config, seed) for seed in args.seeds for config in configs]
         summary = args.results / ("ablations.csv" if args.ablations else "summary.csv")
-        settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "options": extra}
+        folder = str((CONFIGS / args.room).relative_to(HERE.parent.parent))
+        settings = {"frames": args.frames, "eval_episodes": args.eval_episodes, "configs": folder, "options": extra}
         read_summary(summary)  # a damaged file is named now, not when the first run has finished
         check_settings(args.results, settings, write=not args.dry_run)
         if args.dry_run:
