@@ -110,7 +110,7 @@ def plot_scaling(path: Path, rates: dict[int, float], peer_rate: float | None, c
     """Plot cycles/s against the number of rooms (log x) with MiniWorld's steps/s and 5x that, to ``path``."""
     import matplotlib
 
-    from activeperc_rl.atomic import atomic_path
+    from activeperc_rl.runtime.atomic import atomic_path
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

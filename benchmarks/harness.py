@@ -230,7 +230,7 @@ def of_rounds(rounds: int) -> str:
 def refuse_unwritable(parser: argparse.ArgumentParser, outputs: dict[str, Path | None]) -> None:
     """Stop with the parser's error when a path of ``outputs`` ({flag: path or None}) could not be written: before
     minutes of timing, not after them."""
-    from activeperc_rl.atomic import check_writable
+    from activeperc_rl.runtime.atomic import check_writable
 
     for flag, path in outputs.items():
         if path is not None:
@@ -242,7 +242,7 @@ def refuse_unwritable(parser: argparse.ArgumentParser, outputs: dict[str, Path |
 
 def write_csv(path: Path, header: tuple[str, ...], rows: list[tuple]) -> None:
     """Write ``rows`` under ``header`` to the CSV file ``path`` (atomically; ``None`` cells are left empty)."""
-    from activeperc_rl.atomic import atomic_path
+    from activeperc_rl.runtime.atomic import atomic_path
 
     with atomic_path(path) as temporary, open(temporary, "w", newline="") as out:
         writer = csv.writer(out)
@@ -268,18 +268,18 @@ def random_core(num_envs: int, seed: int, version: int = 1, backend: str = "mujo
 
 
 class RandomRooms:
-    """A looker-mode ``make_env(num_envs)`` stepped with random actions the way training's collectors step it."""
+    """A looker-mode ``make_env(num_envs)`` of room ``version`` stepped with random actions the way training's
+    collectors step it (room v1 by default, as :func:`random_core`: the room the committed results were timed in)."""
 
-    def __init__(self, num_envs: int, seed: int, backend: str = "mujoco", device: str = "cpu"):
+    def __init__(self, num_envs: int, seed: int, backend: str = "mujoco", device: str = "cpu", version: int = 1):
         import torch
 
         from activeperc_rl import make_env
         from activeperc_rl.models import RandomPolicy
 
         torch.manual_seed(seed)
-        self.env = make_env(
-            num_envs=num_envs, looker=RandomPolicy(("looker",)), seed=seed, backend=backend, device=device
-        )
+        looker = RandomPolicy(("looker",))
+        self.env = make_env(num_envs, looker=looker, seed=seed, backend=backend, device=device, version=version)
         self.mover = RandomPolicy(("mover",))
         self.state = self.env.reset()
 

@@ -35,8 +35,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 import golden  # noqa: E402 (tests/ on the path first)
 
-from activeperc_rl.atomic import atomic_path  # noqa: E402
-from activeperc_rl.portable import PINNED_ENVIRONMENT, cpu_capability, cpu_vendor, has_avx2, machine  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
+from activeperc_rl.runtime.portable import PINNED_ENVIRONMENT, cpu_capability, cpu_vendor, has_avx2, machine  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results" / "portable_bits.json"
 CANDIDATES = {  # name: (the pinning variables, the convolutions' library: golden.CONVOLUTIONS, --portable given)

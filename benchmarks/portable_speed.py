@@ -23,8 +23,9 @@ from pathlib import Path
 
 import harness
 
+from activeperc_env.rooms import ROOMS
 from activeperc_rl.methods import METHODS
-from activeperc_rl.portable import PINNED_ENVIRONMENT, machine, state_digest
+from activeperc_rl.runtime.portable import PINNED_ENVIRONMENT, machine, state_digest
 
 MODES = {  # name: (extra environment, extra flags of activeperc-train)
     "default": ({}, ()),  # torch's own choice (AVX-512 on a CPU that has it)
@@ -33,13 +34,14 @@ MODES = {  # name: (extra environment, extra flags of activeperc-train)
 }
 
 
-def train(mode: str, method: str, frames: int, out: Path) -> tuple[float, str]:
-    """Train in ``mode`` into ``out``: (frames/s after the first iteration, digest of the saved networks)."""
+def train(mode: str, method: str, frames: int, out: Path, recipe: tuple[str, ...] = ()) -> tuple[float, str]:
+    """Train in ``mode`` into ``out`` (``recipe``: more flags of activeperc-train, such as ``--preset pilot``):
+    (frames/s after the first iteration, digest of the saved networks)."""
     import torch
 
     extra, flags = MODES[mode]
     environment = {k: v for k, v in os.environ.items() if k not in PINNED_ENVIRONMENT} | extra
-    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, "--frames", str(frames), *flags]
+    command = [sys.executable, "-m", "activeperc_rl.cli", "--method", method, "--frames", str(frames), *recipe, *flags]
     command += ["--eval-episodes", "0", "--no-progress", "--out", str(out)]
     subprocess.run(command, env=environment, check=True, capture_output=True, text=True)
     with open(out / "metrics.csv", newline="") as file:
@@ -58,19 +60,25 @@ def main(argv: list[str] | None = None) -> None:
         "--frames", type=harness.at_least(int, "frames", 1), default=20_000, help="frames per run (20000)"
     )
     parser.add_argument("--rounds", type=harness.at_least(int, "rounds", 1), default=3, help="rounds of every mode (3)")
+    parser.add_argument("--preset", choices=("paper", "pilot"), help="train activeperc-train's named preset")
+    parser.add_argument("--version", type=int, choices=tuple(ROOMS), help="train in this room (default: the preset's)")
     args = parser.parse_args(argv)
+    recipe = (
+        *(("--preset", args.preset) if args.preset else ()),
+        *(("--version", str(args.version)) if args.version is not None else ()),
+    )
     import torch
 
     print(
         f"# {machine()} (torch's own kernels), {os.cpu_count()} CPUs, torch {torch.__version__}, "
-        f"{time.strftime('%Y-%m-%d')}; {args.method}, {args.frames} frames"
+        f"{time.strftime('%Y-%m-%d')}; {args.method}, {args.frames} frames{' ' + ' '.join(recipe) if recipe else ''}"
     )
     rates = {mode: [] for mode in MODES}
     digests = {mode: set() for mode in MODES}
     with tempfile.TemporaryDirectory() as folder:
         for round_ in range(args.rounds):
             for mode in MODES:
-                rate, digest = train(mode, args.method, args.frames, Path(folder) / f"{mode}{round_}")
+                rate, digest = train(mode, args.method, args.frames, Path(folder) / f"{mode}{round_}", recipe)
                 rates[mode].append(rate)
                 digests[mode].add(digest)
             print(f"round {round_ + 1}: " + ", ".join(f"{mode} {rates[mode][-1]:,.0f}" for mode in MODES) + " frames/s")

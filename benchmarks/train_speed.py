@@ -80,12 +80,15 @@ def bench_method(
     collector: str = "process",
     parts: bool = False,
     backend: str = "mujoco",
+    recipe: dict | None = None,
+    version: int | None = None,
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
-    The method is built as ``activeperc-train`` builds it: the default :class:`~activeperc_rl.config.TrainConfig` but
-    for the method, ``num_envs`` (``None``: the default), ``collect_workers`` (workers per environment; their start is
-    not timed) and ``collector`` (``process`` or ``ray``, for the workers).
+    The method is built as ``activeperc-train`` builds it: the default :class:`~activeperc_rl.recipe.TrainConfig` (or
+    the preset ``recipe``, in room ``version`` if given) but for the method, ``num_envs`` (``None``: the default),
+    ``collect_workers`` (workers per environment; their start is not timed) and ``collector`` (``process`` or
+    ``ray``, for the workers).
 
     The result holds ``frames_per_s`` (frames, every room's cycles in every environment, over the timed wall time),
     ``iterations``, ``frames``, ``frames_per_iteration``, ``seconds`` (the timed wall time), ``collect_s`` (time
@@ -95,16 +98,17 @@ def bench_method(
     """
     import torch
 
-    from activeperc_rl.config import TrainConfig
     from activeperc_rl.envs import torch_device
-    from activeperc_rl.methods import make_method
+    from activeperc_rl.recipe import TrainConfig, make_method
 
     changes = {"method": name, "device": device, "collect_workers": collect_workers, "collector": collector}
     changes["backend"] = backend
     if num_envs is not None:
         changes["num_envs"] = num_envs
-    config = TrainConfig(**changes)
-    torch.manual_seed(config.seed)
+    if version is not None:
+        changes["version"] = version
+    config = TrainConfig.from_dict(recipe or {}, changes)
+    torch.manual_seed(config.run.seed)
     method = make_method(config, torch_device(device))
     stopwatch = harness.Stopwatch()
     time_collections(method, stopwatch, parts)
@@ -124,8 +128,8 @@ def bench_method(
         "seconds": elapsed,
         "collect_s": collect_s,
         "learn_s": elapsed - collect_s,
-        "num_envs": config.num_envs,
-        "rollout_length": config.rollout_length,
+        "num_envs": config.run.num_envs,
+        "rollout_length": config.run.rollout_length,
     }
     if parts:
         result["parts_s"] = {part: stopwatch.spent.get(part, 0.0) for part in PART_LABELS}
@@ -171,10 +175,14 @@ def combine(results: list[dict]) -> dict:
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """The command-line flags, every value checked."""
+    from activeperc_env.rooms import ROOMS
     from activeperc_env.warp_backend import BACKENDS
     from activeperc_rl.collection import COLLECTORS
-    from activeperc_rl.config import DEVICES, TrainConfig
+    from activeperc_rl.config import DEVICES
     from activeperc_rl.methods import METHODS
+    from activeperc_rl.recipe import PRESETS, TrainConfig
+
+    PRESET_NAMES = sorted(path.stem for path in PRESETS.glob("*.yaml"))
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -195,9 +203,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--threads",
         type=harness.at_least(int, "threads", 0),
-        default=TrainConfig().torch_threads,
-        help="torch threads while collecting, as TrainConfig.torch_threads (0: torch's default; default: as training);"
-        " learning runs on TrainConfig.learner_threads (all usable CPUs), as in training",
+        default=TrainConfig().run.torch_threads,
+        help="torch threads while collecting, as run.torch_threads (0: torch's default; default: as training);"
+        " learning runs on run.learner_threads (all usable CPUs), as in training",
     )
     parser.add_argument(
         "--device", choices=DEVICES, default="cpu", help="where the networks run: cpu (default), cuda, or auto"
@@ -207,7 +215,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--collect-workers",
         type=harness.at_least(int, "workers", 1),
         default=2,
-        help="workers per env of the process and ray collectors (TrainConfig.collect_workers; 2)",
+        help="workers per env of the process and ray collectors (run.collect_workers; 2)",
     )
     parser.add_argument(
         "--collector",
@@ -235,6 +243,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="also time the physics, renders, look, resets and network forward passes within each collection"
         " (inprocess only)",
     )
+    parser.add_argument("--preset", choices=PRESET_NAMES, help="time activeperc-train's named preset (default: none)")
+    parser.add_argument("--version", type=int, choices=tuple(ROOMS), help="time this room (default: the preset's)")
     harness.add_round_flags(parser, per="method")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     args = parser.parse_args(argv)
@@ -248,7 +258,7 @@ def describe_machine(args: argparse.Namespace) -> dict:
     and the allocator as ``activeperc-train`` sets it."""
     import torch
 
-    from activeperc_rl.allocator import keep_freed_memory
+    from activeperc_rl.runtime.allocator import keep_freed_memory
 
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -265,14 +275,17 @@ def print_header(args: argparse.Namespace, machine: dict) -> None:
     print("activeperc training speed vs MiniWorld")
     print(harness.machine_line(machine))
     print(f"         torch {machine['torch']} with {machine['torch_threads']} threads, Python {machine['python']}")
-    print(f"         malloc keeps freed memory (activeperc_rl.allocator): {machine['keep_freed_memory']}")
+    print(f"         malloc keeps freed memory (activeperc_rl.runtime.allocator): {machine['keep_freed_memory']}")
     if "gpu" in machine:
         print(f"         GPU {machine['gpu']}")
     print(
         f"timing:  {args.seconds:g} s per method after {args.warmup_iters} untimed iterations,"
         f" networks on {args.device},"
         f" collectors {', '.join(args.collector)} ({args.workers} workers each but inprocess);"
-        f" {args.rounds} round(s)" + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
+        f" {args.rounds} round(s)"
+        + ("" if args.no_peer else ", MiniWorld timed before the first and after each")
+        + f"; recipe: {f'--preset {args.preset}' if args.preset else 'the defaults'}"
+        + ("" if args.version is None else f", room v{args.version}")
     )
     print()
 
@@ -336,6 +349,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse_args(argv)
     import activeperc_env  # noqa: F401 (chooses the GL backend, e.g. MUJOCO_GL=egl, before we report it)
     from activeperc_rl.envs import torch_device
+    from activeperc_rl.recipe import preset
 
     machine = describe_machine(args)
     print_header(args, machine)
@@ -356,6 +370,8 @@ def main(argv: list[str] | None = None) -> dict:
                 kind,
                 args.parts,
                 args.backend,
+                preset(args.preset) if args.preset else None,
+                args.version,
             )
             print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()

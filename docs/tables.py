@@ -186,6 +186,7 @@ V3_SWEEP = "experiments/results/v3_best_look"
 V3_FRAME_STACK = "experiments/results/v3_frame_stack"
 V3_BEARING = "experiments/results/v3_bearing"
 V3_BEARING_600K = "experiments/results/v3_bearing_600k"
+V3_SEEDS_5_9 = "experiments/results/v3_600k_seeds5-9"
 
 
 def v3_sweep(folder: str) -> str:
@@ -525,8 +526,9 @@ def train_flags() -> str:
 
 
 def method_options() -> str:
-    """Which method reads each option that only some methods read, from the method classes' ``READS``."""
-    from activeperc_rl.methods import METHOD_OPTIONS, METHODS
+    """Which method reads each method option, from the methods' option classes."""
+    from activeperc_rl.methods import METHODS
+    from activeperc_rl.recipe import METHOD_OPTIONS
 
     rows = [
         [f"`--{option.replace('_', '-')}`"] + ["yes" if method in readers else "" for method in METHODS]
@@ -535,7 +537,15 @@ def method_options() -> str:
     return markdown(["flag", *(f"`{method}`" for method in METHODS)], rows)
 
 
+def version_history() -> str:
+    """The rooms' version history, from their records (activeperc_env/rooms/)."""
+    from activeperc_env.rooms import version_history
+
+    return version_history(markdown=True) + "\n"
+
+
 SECTIONS = {  # marker: (document in docs/, the function that makes its table)
+    "version-history": ("env.md", version_history),
     "train-flags": ("training.md", train_flags),
     "method-options": ("training.md", method_options),
     "goal-visibility": ("env.md", goal_visibility),
@@ -559,6 +569,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     ),
     "room-v3-bearing-600k": ("reproduction.md", lambda: v3_sweep(V3_BEARING_600K)),
     "room-v3-bearing-600k-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING_600K)),
+    "room-v3-seeds-5-9": ("reproduction.md", lambda: v3_sweep(V3_SEEDS_5_9)),
+    "room-v3-seeds-5-9-looks": ("reproduction.md", lambda: v3_looks(V3_SEEDS_5_9)),
     "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
     "portable-speed": ("training.md", portable_speed),
     "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),

@@ -9,8 +9,8 @@ import pytest
 from activeperc_env import EnvConfig
 from activeperc_env.config import shown_default
 from activeperc_rl import evaluate
-from activeperc_rl.cli import build_parser
-from activeperc_rl.config import TrainConfig
+from activeperc_rl.cli import build_parser, method_default
+from activeperc_rl.recipe import METHOD_OPTIONS, SECTIONS
 
 TRAINING_MD = Path(__file__).resolve().parents[1] / "docs" / "training.md"
 TEXT = TRAINING_MD.read_text()
@@ -29,14 +29,13 @@ def table_rows(title: str) -> dict[str, str]:
 
 
 def config_defaults() -> dict[str, str]:
-    """``{dest: default as typed}`` of every config field that is a flag (TrainConfig's but ``env``, and
-    EnvConfig's): ``16 32`` for ``(16, 32)``, each version's for a field whose default depends on it."""
+    """``{dest: default as typed}`` of every config field that is a flag (the sections', the methods' options and
+    EnvConfig's): ``16 32`` for ``(16, 32)``, each room's for a field whose default is the room's own."""
     defaults = {}
-    for cls in (TrainConfig, EnvConfig):
+    for cls in (*SECTIONS.values(), EnvConfig):
         for f in dataclasses.fields(cls):
-            if f.name != "env":
-                defaults[f.name] = shown_default(cls, f, as_flag=True)
-    return defaults
+            defaults[f.name] = shown_default(cls, f, as_flag=True)
+    return defaults | {name: method_default(name) for name in METHOD_OPTIONS} | {"method": "meta"}
 
 
 def test_training_md_has_examples():
