@@ -20,8 +20,14 @@ DOCS = ROOT / "docs"
 FIG1 = "experiments/fig1/results"
 sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  # the scripts' own table makers
 
-from aggregate import difference_table, mean_ci, replace_between, summary_table, with_reference  # noqa: E402
-from looker_stats import markdown_table  # noqa: E402
+from aggregate import (  # noqa: E402
+    difference_table,
+    mean_ci,
+    paired_difference,
+    replace_between,
+    summary_table,
+    with_reference,
+)
 from value_of_looking import read_csv as read_looking  # noqa: E402
 from value_of_looking import table as looking_table  # noqa: E402
 
@@ -125,23 +131,6 @@ def fig1_ablations() -> str:
     return summary_table(with_reference(read(f"{FIG1}/ablations.csv"), read(f"{FIG1}/summary.csv")))
 
 
-def h100_long() -> str:
-    """The two longer H100 runs: held-out results and what ``phi2`` ended as."""
-    looker = {r["run"].split("/")[0]: r["phi2"] for r in read(f"{FIG1}/h100_long/looker.csv")}
-    rows = [
-        [
-            f"`{r['method']}`, {r['fov']} degrees",
-            f"{int(r['frames']):,}",
-            f"{float(r['final_success_rate']):.2f}",
-            f"{float(r['final_return']):.3f}",
-            f"{float(r['random_success_rate']):.2f}",
-            looker[f"{r['method']}_fov{r['fov']}"] or "-",
-        ]
-        for r in read(f"{FIG1}/h100_long/summary.csv")
-    ]
-    return markdown(["run", "frames", "held-out success", "held-out return", "random success", "`phi2`"], rows)
-
-
 def importance_weights() -> str:
     """The three runs whose ``phi2`` settled on 'hold', with the paper's gradient and with importance weights."""
     paper = looker_outcomes(f"{FIG1}/summary.csv", f"{FIG1}/looker.csv")
@@ -182,11 +171,47 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
     return outcomes
 
 
-V3_SWEEP = "experiments/results/v3_best_look"
-V3_FRAME_STACK = "experiments/results/v3_frame_stack"
 V3_BEARING = "experiments/results/v3_bearing"
 V3_BEARING_600K = "experiments/results/v3_bearing_600k"
 V3_SEEDS_5_9 = "experiments/results/v3_600k_seeds5-9"
+
+
+def readme_results() -> str:
+    """README's table: what the first command printed on seed 0 (``room_v3.csv``), and over seeds 0-4 and 5-9 the
+    same command (``meta``) against its mover with the camera held forward, the fixed-camera baseline, their paired
+    difference and random play."""
+    printout = next(
+        r for r in read("experiments/results/room_v3.csv") if (r["command"], r["seeds"]) == ("activeperc-train", "0")
+    )
+    columns = [[printout["success"], printout["camera_held"], "", "", printout["random"]]]
+    for folder in (V3_BEARING_600K, V3_SEEDS_5_9):
+        runs = [r for r in read(f"{folder}/summary.csv") if r["fov"] == "60"]
+        meta = [r for r in runs if r["method"] == "meta_eps0.3"]
+        held = [r["success"] for r in read(f"{folder}/pan_vs_bearing.csv") if r["looker"] == "camera held"]
+        _, mean, half = paired_difference(runs, "meta_eps0.3", 60)
+        columns.append(
+            [
+                spread(r["final_success_rate"] for r in meta),
+                spread(held),
+                spread(r["final_success_rate"] for r in runs if r["method"] == "fixed_forward"),
+                f"{mean:+.2f} ± {half:.2f}",
+                spread(r["random_success_rate"] for r in meta),
+            ]
+        )
+    names = [
+        "`activeperc-train`: mover and looker",
+        "its mover, camera held forward",
+        "`--method fixed_forward`",
+        "difference to `fixed_forward`, paired",
+        "random play",
+    ]
+    header = [
+        "room v3, 60°, 600k frames",
+        "seed 0 (printed)",
+        "seeds 0-4",
+        "seeds 5-9",
+    ]
+    return markdown(header, [[name, *cells] for name, *cells in zip(names, *columns, strict=True)])
 
 
 def v3_sweep(folder: str) -> str:
@@ -194,29 +219,6 @@ def v3_sweep(folder: str) -> str:
     seeds and the paired differences."""
     rows = read(f"{folder}/summary.csv")
     return summary_table(rows) + "\n" + difference_table(rows)
-
-
-def v3_looks(folder: str) -> str:
-    """What each seed's learned looker of the sweep in ``folder`` did on the held-out episodes, beside the camera
-    held forward (``experiments/pan_vs_bearing.py``)."""
-    rows = [
-        [
-            f"{Path(r['run']).parent.name}/{Path(r['run']).name}, {r['looker']}",
-            r["success"],
-            r["pan_rate"],
-            r["goal_in_view"],
-            r["in_view_outside_fov"],
-        ]
-        for r in read(f"{folder}/pan_vs_bearing.csv")
-    ]
-    header = [
-        "`meta` run, looker",
-        "held-out success",
-        "pan rate",
-        "goal in view",
-        "goal in view, bearing outside the forward field of view",
-    ]
-    return markdown(header, rows)
 
 
 def portable_speed() -> str:
@@ -308,119 +310,6 @@ def rooms_table(path: str) -> str:
     return markdown(["rooms N"] + [r["num_envs"] for r in rows], lines)
 
 
-def env_memory() -> str:
-    """Resident memory over the committed memory run: first and last sample, the largest, the rise after 128."""
-    rows = read(f"{BENCH}/env_memory.csv")
-    mib = [float(r["rss_mib"]) for r in rows]
-    after = mib[-1] - next(float(r["rss_mib"]) for r in rows if r["episodes"] == "128")
-    cells = [f"{int(rows[-1]['episodes']):,}", f"{mib[0]:.1f} → {mib[-1]:.1f}", f"{max(mib):.1f}", f"{after:.1f}"]
-    return markdown(["episodes", "resident MiB, first → last", "largest", "rise after episode 128"], [cells])
-
-
-def view_profile() -> str:
-    """Microseconds per view, step by step."""
-    rows = read(f"{BENCH}/cpu2/view_profile.csv")
-    steps = ["context", "pose", "cull", "scene", "draw", "read", "total"]
-    header = [
-        "",
-        "GL context made current and released",
-        "state loaded",
-        "cull (none)",
-        "scene listed",
-        "draw calls",
-        "read-back",
-        "total",
-    ]
-    return markdown(header, [[r["run"]] + [r[step] for step in steps] for r in rows]) + runs_footer(rows)
-
-
-def llvmpipe_threads() -> str:
-    """Rates with llvmpipe drawing in the calling thread and with its threads, and the change."""
-    rows = read(f"{BENCH}/cpu2/llvmpipe_threads.csv")
-    lines = [
-        [
-            r["figure"],
-            f"{float(r['lp0']):,.0f}",
-            f"{float(r['default']):,.0f}",
-            f"{(float(r['lp0']) / float(r['default']) - 1) * 100:+.0f} %",
-        ]
-        for r in rows
-    ]
-    return markdown(["", "`LP_NUM_THREADS=0`", "default", "change"], lines) + runs_footer(rows)
-
-
-def gym_vector() -> str:
-    """Our batched vector env against Gymnasium's sync one, round by round."""
-    rows = read(f"{BENCH}/cpu2/gym_vector.csv")
-    lines = [
-        [
-            r["round"],
-            f"{int(r['ours']):,}",
-            f"{int(r['sync']):,}",
-            times(int(r["ours"]) / int(r["sync"])),
-            times(r["ours_over_miniworld"]),
-        ]
-        for r in rows
-    ]
-    header = ["round", "ours, steps/s", "sync, steps/s", "ours / sync", "ours / MiniWorld"]
-    return markdown(header, lines) + runs_footer(rows)
-
-
-def train_methods() -> str:
-    """Each method's training frames/s, against MiniWorld, and the split of an iteration."""
-    rows = read(f"{BENCH}/cpu2/train_methods.csv")
-    lines = [
-        [
-            f"`{r['method']}`" + (f" ({r['note']})" if r["note"] else ""),
-            f"{int(r['frames_per_s']):,}",
-            f"{r['ratio']} ({', '.join(r['rounds'].split())})",
-            f"{r['collect']} % / {r['learn']} %",
-        ]
-        for r in rows
-    ]
-    header = ["method", "frames/s (median)", "x MiniWorld: median (rounds)", "collect / learn"]
-    return markdown(header, lines) + runs_footer(rows)
-
-
-def collectors() -> str:
-    """`meta`'s frames/s with each collector, against in-process collection and against MiniWorld."""
-    rows = read(f"{BENCH}/cpu2/collectors.csv")
-    lines = [
-        [
-            r["collector"],
-            r["frames_per_s"],
-            (times(r["gain"]) + f" ({', '.join(map(times, r['gain_rounds'].split()))})") if r["gain_rounds"] else "1",
-            times(r["ratio"]),
-        ]
-        for r in rows
-    ]
-    header = ["collector", "frames/s", "against in-process, per round", "against MiniWorld's raw steps/s"]
-    return markdown(header, lines) + runs_footer(rows)
-
-
-def workers_allocator() -> str:
-    """Pairs of runs in one process and with 2 collection workers, with the allocator that keeps freed memory."""
-    rows = read(f"{BENCH}/cpu2/workers_allocator.csv")
-    lines = [
-        [
-            f"{r['rooms']} (pair {r['pair']})",
-            r["in_process"],
-            f"{r['workers']} ({(int(r['workers']) / int(r['in_process']) - 1) * 100:+.0f} %)",
-            f"{int(r['collect_in_process']):,} -> {int(r['collect_workers']):,} ms",
-            f"{int(r['learn_in_process']):,} -> {int(r['learn_workers']):,} ms",
-        ]
-        for r in rows
-    ]
-    header = [
-        "rooms",
-        "in-process, frames/s",
-        "2 workers, frames/s",
-        "collection per iteration",
-        "learning per iteration",
-    ]
-    return markdown(header, lines) + runs_footer(rows)
-
-
 def h100_train() -> str:
     """Training frames/s on the H100 machine by number of rooms (collection's share of a `meta` iteration)."""
     rows = read(f"{BENCH}/h100/train.csv")
@@ -443,43 +332,6 @@ def h100_train() -> str:
 
 # the folders of benchmarks/results/h200/, each the code it measured
 H200_RUNS = ("d7a6f27", "772515a", "7418c63", "21fc21d")
-
-
-def h200_profile() -> str:
-    """Where a cycle of the bare warp ``Simulator`` went on the H200 machine, by code and number of rooms."""
-    lines = [
-        [
-            f"`{code}`",
-            f"{int(r['num_envs']):,}",
-            f"{float(r['cycles_per_s']):,.0f}",
-            *(f"{float(r[key]):.1f}" for key in ("move_ms", "render_ms", "device_physics_ms", "device_render_ms")),
-            f"{float(r['views_to_host_ms']):.1f}",
-            f"{float(r['device_mib_per_room']):.2f}",
-        ]
-        for code in H200_RUNS
-        for r in read(f"{BENCH}/h200/{code}/warp_profile.csv")
-    ]
-    header = ["code", "rooms", "cycles/s", "move ms", "render ms", "device physics ms", "device render pass ms",
-              "views to host ms", "device MiB per room"]  # fmt: skip
-    return markdown(header, lines)
-
-
-def h200_env_split() -> str:
-    """Where a cycle of the warp backend's TorchRL env went on the H200 machine, by code and number of rooms."""
-    parts = ("move", "look", "reset", "observe", "rest")
-    lines = [
-        [
-            f"`{code}`",
-            f"{int(r['num_envs']):,}",
-            f"{float(r['env_cycles_per_s']):,.0f}",
-            *(f"{float(r[f'env_{part}_ms']):.1f}" for part in parts),
-        ]
-        for code in H200_RUNS
-        for r in read(f"{BENCH}/h200/{code}/warp_profile.csv")
-        if r.get("env_cycles_per_s")
-    ]
-    header = ["code", "rooms", "cycles/s", "move ms", "look ms", "resets ms", "observations ms", "the rest ms"]
-    return markdown(header, lines)
 
 
 def h200_env() -> str:
@@ -537,6 +389,13 @@ def method_options() -> str:
     return markdown(["flag", *(f"`{method}`" for method in METHODS)], rows)
 
 
+def value_of_looking(name: str) -> str:
+    """``experiments/results/NAME.csv``'s scripted pairs; the oracle and random movers, which never read the image,
+    with the fixed camera only (their rows are the same with every looker)."""
+    rows = read_looking(ROOT / f"experiments/results/{name}.csv")
+    return looking_table([r for r in rows if r["mover"] == "vision" or r["looker"] == "fixed"]) + "\n"
+
+
 def version_history() -> str:
     """The rooms' version history, from their records (activeperc_env/rooms/)."""
     from activeperc_env.rooms import version_history
@@ -548,60 +407,31 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "version-history": ("env.md", version_history),
     "train-flags": ("training.md", train_flags),
     "method-options": ("training.md", method_options),
-    "goal-visibility": ("env.md", goal_visibility),
-    "value-of-looking": (
-        "env.md",
-        lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking.csv")) + "\n",
-    ),
-    "value-of-looking-v3": (
-        "env.md",
-        lambda: looking_table(read_looking(ROOT / "experiments/results/value_of_looking_v3.csv")) + "\n",
-    ),
-    "room-v3-sweep": ("reproduction.md", lambda: v3_sweep(V3_SWEEP)),
-    "room-v3-looks": ("reproduction.md", lambda: v3_looks(V3_SWEEP)),
-    "room-v3-frame-stack": ("reproduction.md", lambda: v3_sweep(V3_FRAME_STACK)),
-    "room-v3-frame-stack-looks": ("reproduction.md", lambda: v3_looks(V3_FRAME_STACK)),
-    "room-v3-bearing": ("reproduction.md", lambda: v3_sweep(V3_BEARING)),
-    "room-v3-bearing-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING)),
+    "goal-visibility": ("results.md", goal_visibility),
+    "value-of-looking": ("results.md", lambda: value_of_looking("value_of_looking")),
+    "value-of-looking-v3": ("results.md", lambda: value_of_looking("value_of_looking_v3")),
+    "room-v3-bearing": ("results.md", lambda: v3_sweep(V3_BEARING)),
     "room-v3-bearing-vs-meta": (
-        "reproduction.md",
+        "results.md",
         lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
     ),
-    "room-v3-bearing-600k": ("reproduction.md", lambda: v3_sweep(V3_BEARING_600K)),
-    "room-v3-bearing-600k-looks": ("reproduction.md", lambda: v3_looks(V3_BEARING_600K)),
-    "room-v3-seeds-5-9": ("reproduction.md", lambda: v3_sweep(V3_SEEDS_5_9)),
-    "room-v3-seeds-5-9-looks": ("reproduction.md", lambda: v3_looks(V3_SEEDS_5_9)),
-    "room-v3": ("training.md", lambda: runs_table("room_v3", ["command", "episodes", "held-out", "looked"])),
-    "portable-speed": ("training.md", portable_speed),
-    "room-v1": ("training.md", lambda: runs_table("room_v1", ["command", "episodes", "held-out", "looked"])),
-    "room-v1-baselines": (
-        "training.md",
-        lambda: runs_table("room_v1_baselines", ["command", "held-out", "looked"]),
-    ),
-    "room-v2": ("training.md", lambda: runs_table("room_v2", ["command", "episodes", "held-out", "looked"])),
-    "memory-mover": ("training.md", lambda: runs_table("memory_mover", ["command", "episodes", "held-out", "looked"])),
-    "room-v0": ("training.md", lambda: runs_table("room_v0", ["command", "frames", "train", "held-out"])),
-    "fig1-summary": ("reproduction.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
-    "fig1-ablations": ("reproduction.md", fig1_ablations),
-    "looker-sweep": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker.csv"))),
-    "looker-probe": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker_probe.csv"))),
-    "looker-ablations": ("reproduction.md", lambda: markdown_table(read(f"{FIG1}/looker_ablations.csv"))),
-    "h100-long": ("reproduction.md", h100_long),
-    "importance-weights": ("reproduction.md", importance_weights),
+    "readme-results": ("../README.md", readme_results),
+    "room-v3-bearing-600k": ("results.md", lambda: v3_sweep(V3_BEARING_600K)),
+    "room-v3-seeds-5-9": ("results.md", lambda: v3_sweep(V3_SEEDS_5_9)),
+    "room-v3": ("results.md", lambda: runs_table("room_v3", ["command", "held-out"])),
+    "portable-speed": ("performance.md", portable_speed),
+    "room-v1": ("results.md", lambda: runs_table("room_v1", ["command", "held-out"])),
+    "room-v1-baselines": ("results.md", lambda: runs_table("room_v1_baselines", ["command", "held-out"])),
+    "room-v2": ("results.md", lambda: runs_table("room_v2", ["command", "held-out"])),
+    "memory-mover": ("results.md", lambda: runs_table("memory_mover", ["command", "held-out"])),
+    "fig1-summary": ("results.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
+    "fig1-ablations": ("results.md", fig1_ablations),
+    "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
-    "view-profile": ("performance.md", view_profile),
-    "llvmpipe-threads": ("performance.md", llvmpipe_threads),
     "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
-    "env-memory": ("performance.md", env_memory),
-    "gym-vector": ("performance.md", gym_vector),
-    "train-methods": ("performance.md", train_methods),
-    "collectors": ("performance.md", collectors),
-    "workers-allocator": ("performance.md", workers_allocator),
     "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
     "h100-train": ("performance.md", h100_train),
-    "h200-warp-profile": ("performance.md", h200_profile),
     "h200-warp-env": ("performance.md", h200_env),
-    "h200-warp-env-split": ("performance.md", h200_env_split),
     "h200-warp-train": ("performance.md", h200_train),
 }
 

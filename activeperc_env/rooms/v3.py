@@ -20,6 +20,6 @@ ROOM = Room(
 `forward_speed`; `turn_speed` is unused), keeping the heading it started with, within 90 degrees of the goal's
 bearing. The occluders trade places at random as in v2. Layouts, physics steps, sensors, reward and spaces are v1's.
 Why: in v1 and v2 a learned mover found the goal by turning its body, which it must do anyway to face the goal, so no
-looker lifted it ([training.md](training.md#room-v3)); here the scripted scan looker lifts the learned mover from 0.37
+looker lifted it ([results](results.md#room-v3)); here the scripted scan looker lifts the learned mover from 0.37
 to 0.75, and a looker trained by `meta` lifts it too. The default room since 2026-12-05 (before: v1).""",
 )

@@ -8,7 +8,7 @@ Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.c
   column per field of view, the mean over seeds with a 95 % confidence band (Student's t over seeds,
   drawn within [0, 1]; no band with one seed); the dashed grey line is a random mover and looker on the
   held-out episodes, averaged over the seeds;
-- writes the table of final held-out results into ``docs/reproduction.md`` between the markers
+- writes the table of final held-out results into ``docs/results.md`` between the markers
   ``<!-- fig1-summary -->`` and ``<!-- /fig1-summary -->`` (and prints it).
 
 ``--ablations`` does the same for ``results/ablations.csv`` (figure ``fig1_ablations.png``, markers
@@ -44,8 +44,8 @@ from sweep import HERE, method_rank, read_summary  # noqa: E402
 from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
 ROOT = HERE.parent.parent
-DOC = ROOT / "docs" / "reproduction.md"
-RESULTS = HERE / "results"  # the committed results, whose table and figures are docs/reproduction.md's
+DOC = ROOT / "docs" / "results.md"
+RESULTS = HERE / "results"  # the committed results, whose table and figures are docs/results.md's
 GRID_POINTS = 100
 FULL_WINDOW = 100  # curves start once this many training episodes have finished: metrics.csv averages the last 100
 # Two-sided 95 % critical values of Student's t by degrees of freedom (standard statistical tables).
@@ -273,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--doc",
         type=Path,
-        help="the document whose table is updated (default: docs/reproduction.md for "
+        help="the document whose table is updated (default: docs/results.md for "
         "fig1/results; for another --results none, the table is only printed)",
     )
     parser.add_argument(

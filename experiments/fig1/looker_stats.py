@@ -17,7 +17,7 @@ repository root)::
 
     python experiments/fig1/looker_stats.py experiments/fig1/runs/meta_eps0.?_fov*/seed* \
         --csv experiments/fig1/results/looker.csv
-    python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv --doc docs/reproduction.md
+    python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv --doc TABLE.md
     python experiments/fig1/looker_stats.py --from-csv experiments/fig1/results/looker.csv NEW_RUNS... \
         --csv experiments/fig1/results/looker.csv
 """

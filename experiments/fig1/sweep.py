@@ -41,7 +41,7 @@ Examples (from the repository root)::
 Arguments after ``--`` go to every ``activeperc-train`` call (a variant of the presets), a method's option to the runs
 of the methods that have it only.
 Then ``python experiments/fig1/aggregate.py --results RESULTS`` (the same folder) draws the curves and prints the
-table; for the committed folder it updates docs/reproduction.md and docs/figures.
+table; for the committed folder it updates docs/results.md and docs/figures.
 """
 
 from __future__ import annotations
