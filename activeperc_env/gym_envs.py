@@ -84,7 +84,8 @@ class JointEnv(_SingleAgentEnv):
         ``info`` adds ``episode_success`` (the robot reached the goal) and ``episode_return`` (the sum of the rewards).
 
     Arguments:
-        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+        render_mode: None, 'rgb_array' or 'human'.
+        **config: any :class:`EnvConfig` field (the room and its options).
     """
 
     def __init__(self, render_mode: str | None = None, **config):
@@ -120,7 +121,8 @@ class FixedForwardEnv(_SingleAgentEnv):
         ``info`` adds ``episode_success`` (the robot reached the goal) and ``episode_return`` (the sum of the rewards).
 
     Arguments:
-        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+        render_mode: None, 'rgb_array' or 'human'.
+        **config: any :class:`EnvConfig` field (the room and its options).
     """
 
     def __init__(self, render_mode: str | None = None, **config):

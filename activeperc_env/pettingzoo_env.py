@@ -109,7 +109,8 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         ``episode_success`` (the robot reached the goal) and ``episode_return`` (the mover's return).
 
     Arguments:
-        ``render_mode`` (None, 'rgb_array' or 'human') and any :class:`EnvConfig` field.
+        render_mode: None, 'rgb_array' or 'human'.
+        **config: any :class:`EnvConfig` field (the room and its options).
     """
 
     def __init__(self, render_mode: str | None = None, **config):
