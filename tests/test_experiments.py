@@ -15,8 +15,6 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
     [
         ("motion_profile.py", ["--cycles", "0"], "--cycles must be >= 1, got 0"),
         ("motion_profile.py", ["--random-cycles", "0"], "--random-cycles must be >= 32"),
-        ("untrained_looker.py", ["--cycles", "0"], "--cycles must be >= 1, got 0"),
-        ("untrained_looker.py", ["--hold-prob", "1.5"], "--hold-prob must be in [0, 1), got 1.5"),
         ("goal_visibility.py", ["--min-pixels", "-1"], "--min-pixels must be >= 1, got -1"),
         ("goal_visibility.py", ["--batch", "0"], "--batch must be >= 1, got 0"),
         ("tile_shading.py", ["--rooms", "0"], "--rooms must be >= 1, got 0"),
