@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -22,7 +23,9 @@ sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  
 
 from aggregate import (  # noqa: E402
     difference_table,
+    group_runs,
     mean_ci,
+    method_rank,
     paired_difference,
     replace_between,
     summary_table,
@@ -219,6 +222,65 @@ def v3_sweep(folder: str) -> str:
     seeds and the paired differences."""
     rows = read(f"{folder}/summary.csv")
     return summary_table(rows) + "\n" + difference_table(rows)
+
+
+CLAIM_ROOMS = {"v3": "experiments/results/v3_bearing/summary.csv", "v0": f"{FIG1}/summary.csv"}
+"""The Figure 1 sweep of each room the paper's claims are judged in."""
+BASELINES = ("fixed_forward", "joint", "ia2c", "curriculum")
+
+
+def claim_numbers(claim: int, rows: list[dict]) -> str:
+    """The held-out success (return for claim 3) behind the paper's claim ``claim`` (1 to 5) in one room's Figure 1
+    sweep ``rows``."""
+    success = {
+        key: mean_ci([float(r["final_success_rate"]) for r in runs])[0] for key, runs in group_runs(rows).items()
+    }
+
+    def ranked(fov: int, methods) -> str:
+        named = sorted(((success[m, fov], m) for m in methods if (m, fov) in success), reverse=True)
+        return ", ".join(f"`{m}` {value:.3f}" for value, m in named)
+
+    def paired(method: str, fov: int, reference: str) -> str:
+        _, mean, half = paired_difference(rows, method, fov, reference)
+        return f"{mean:+.3f} ± {half:.3f}"
+
+    methods = sorted({m for m, _ in success}, key=method_rank)
+    if claim == 1:
+        return ranked(100, BASELINES)
+    if claim == 2:
+        return f"{ranked(100, methods)}; `meta_eps0.1` minus `meta_eps0.3` {paired('meta_eps0.1', 100, 'meta_eps0.3')}"
+    if claim == 3:  # the paper's claim is about return
+        returns = {key: mean_ci([float(r["final_return"]) for r in runs])[0] for key, runs in group_runs(rows).items()}
+        drops = ", ".join(f"`{m}` {returns[m, 100]:.3f} to {returns[m, 60]:.3f}" for m in methods)
+        return f"held-out return from 100 to 60 degrees: {drops}"
+    if claim == 4:
+        return ranked(60, methods)
+    at = {fov: paired("meta_eps0.3", fov, "fixed_forward") for fov in (60, 100)}
+    return f"`meta_eps0.3` minus `fixed_forward`, paired: {at[60]} at 60 degrees, {at[100]} at 100"
+
+
+def paper_claims() -> str:
+    """Each of the paper's claims, its verdict in room v3 and in room v0 (``paper_claims.csv``) and the held-out
+    success behind it, from each room's Figure 1 sweep."""
+    sweeps = {room: read(path) for room, path in CLAIM_ROOMS.items()}
+    rows = [
+        [row["claim"], *(f"{row[room]}: {claim_numbers(number, sweeps[room])}" for room in CLAIM_ROOMS)]
+        for number, row in enumerate(read("experiments/results/paper_claims.csv"), start=1)
+    ]
+    return markdown(["claim", "room v3, 1,000,000 frames", "room v0, 300,000 frames"], rows)
+
+
+def portable_census() -> str:
+    """What ``benchmarks/portable_bits.py --census`` counted under an emulated Haswell: per config and method, the
+    distinct code addresses the run reached and those of instructions whose result the CPU model defines."""
+    stored = json.loads((ROOT / "benchmarks/results/portable_bits.json").read_text())
+    rows = []
+    for config in ("portable", "unfused_adam"):
+        for method, counts in stored[config]["emulated Haswell-v4"]["census"].items():
+            defined = {k: v for k, v in counts.items() if k not in ("translated", "undecoded")}
+            reached = ", ".join(f"`{name}` at {n}" for name, n in defined.items()) or "none"
+            rows.append([f"`{config}`", method, f"{counts['translated']:,}", reached])
+    return markdown(["config", "method", "distinct addresses reached", "CPU-defined instructions reached"], rows)
 
 
 def portable_speed() -> str:
@@ -419,6 +481,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "room-v3-bearing-600k": ("results.md", lambda: v3_sweep(V3_BEARING_600K)),
     "room-v3-seeds-5-9": ("results.md", lambda: v3_sweep(V3_SEEDS_5_9)),
     "room-v3": ("results.md", lambda: runs_table("room_v3", ["command", "held-out"])),
+    "paper-claims": ("results.md", paper_claims),
+    "portable-census": ("training.md", portable_census),
     "portable-speed": ("performance.md", portable_speed),
     "room-v1": ("results.md", lambda: runs_table("room_v1", ["command", "held-out"])),
     "room-v1-baselines": ("results.md", lambda: runs_table("room_v1_baselines", ["command", "held-out"])),

@@ -472,9 +472,10 @@ def test_portable_bits_census_counts_the_cpu_defined_instructions_by_address(tmp
         bits.census(tmp_path / "empty.log")
 
 
-def test_the_committed_census_is_the_one_training_md_quotes():
+def test_the_committed_census_holds_what_training_md_says_of_it():
     """Under the emulated Haswell the check's portable runs train the committed weights and reach no CPU-defined
-    instruction in code that disassembled whole, the control reaches rsqrtps, and docs/training.md quotes the counts."""
+    instruction in code that disassembled whole, and the control reaches rsqrtps (docs/tables.py writes the counts
+    into docs/training.md)."""
     bits = load_script("portable_bits")
     stored, trained = json.loads(bits.RESULTS.read_text()), json.loads(bits.golden.TRAINING.read_text())
     portable, control = (stored[c]["emulated Haswell-v4"]["census"] for c in ("portable", "unfused_adam"))
@@ -483,11 +484,7 @@ def test_the_committed_census_is_the_one_training_md_quotes():
     assert all(set(control[m]) - {"translated", "undecoded"} == {"rsqrtps"} for m in bits.golden.TRAINING_METHODS)
     for method in bits.golden.TRAINING_METHODS:
         assert stored["portable"]["emulated Haswell-v4"][method] == trained[method]["weights"]
-    text = " ".join((BENCHMARKS.parent / "docs" / "training.md").read_text().split())
-    reached = " and ".join(f"{n:,}" for n in sorted(portable[m]["translated"] for m in portable))
-    assert f"the check's two portable runs reach {reached} distinct addresses and none of them" in text
-    (rsqrtps,) = {control[m]["rsqrtps"] for m in control}
-    assert f"reaches `rsqrtps` at {rsqrtps} addresses in each run" in text
+    assert all(control[m]["rsqrtps"] > 0 for m in control)
 
 
 def test_portable_ops_adds_this_machines_digests_and_names_the_operations_that_differ(tmp_path, monkeypatch, capsys):
