@@ -525,3 +525,34 @@ def test_warp_profile_splits_a_cycle_and_times_the_device_parts(tmp_path, capsys
     with open(out, newline="") as file:
         (written,) = list(csv.DictReader(file))
     assert int(written["num_envs"]) == 2 and written["device_mib_per_room"] == ""
+
+
+def test_time_to_success_scores_each_step_over_seeds_and_resumes_where_it_stopped(tmp_path, capsys):
+    """Each method and seed trains in steps, each step scored on held-out layouts and written as it finishes; a second
+    call trains nothing it has; the report names each threshold per method and the figure is written."""
+    tts = load_script("time_to_success")
+    tiny = ["--frames", "200", "--num-envs", "4", "--rollout-length", "8", "--max-cycles", "12", "--channels", "8"]
+    args = ["--seeds", "0", "1", "--every", "100", "--episodes", "4", "--runs", str(tmp_path / "runs")]
+    args += ["--csv", str(tmp_path / "tts.csv"), "--", *tiny, "--hidden-size", "32", "--no-progress"]
+    assert tts.main(args) == 0
+    rows = tts.read_rows(tmp_path / "tts.csv")
+    assert [(r["method"], r["seed"]) for r in rows[::2]] == [("meta", "0"), ("meta", "1")] + [
+        ("fixed_forward", "0"),
+        ("fixed_forward", "1"),
+    ]
+    assert all(int(a["frames"]) >= 100 and int(b["frames"]) >= 200 for a, b in zip(rows[::2], rows[1::2], strict=True))
+    assert all(r["episodes"] == "4" and 0.0 <= float(r["success_rate"]) <= 1.0 for r in rows)
+    out = capsys.readouterr().out
+    for method in ("meta", "fixed_forward"):
+        for threshold in tts.THRESHOLDS:
+            assert f"{method}: mean held-out success {threshold:.2f}: " in out
+    assert (tmp_path / "tts.png").stat().st_size > 0
+    assert tts.main(args) == 0  # everything measured: nothing trains again
+    assert "activeperc-train:" not in capsys.readouterr().out
+    assert tts.read_rows(tmp_path / "tts.csv") == rows
+
+
+def test_time_to_success_refuses_a_training_flag_it_cannot_use(capsys):
+    with pytest.raises(SystemExit):
+        load_script("time_to_success").main(["--", "--epsilon", "0.1", "--method", "fixed_forward"])
+    assert "--epsilon is not an option of method 'fixed_forward'" in capsys.readouterr().err
