@@ -72,7 +72,8 @@ def read_rows(path: Path) -> list[dict]:
 
 
 def curve(rows: list[dict], method: str) -> list[tuple[int, float, float, float]]:
-    """``method``'s points measured on every seed it has: (frames, mean minutes, mean success, 95 % half-width)."""
+    """``method``'s points measured on every seed it has: (frames, mean minutes, mean success, 95 % half-width, NaN
+    for one seed)."""
     mine = [r for r in rows if r["method"] == method]
     seeds = {r["seed"] for r in mine}
     points = []
@@ -82,7 +83,7 @@ def curve(rows: list[dict], method: str) -> list[tuple[int, float, float, float]
             continue  # a point not every seed has reached yet
         success, half = mean_ci([float(r["success_rate"]) for r in at])
         minutes = sum(float(r["train_minutes"]) for r in at) / len(at)
-        points.append((frames, minutes, success, 0.0 if math.isnan(half) else half))
+        points.append((frames, minutes, success, half))  # half: NaN for one seed
     return points
 
 
@@ -97,7 +98,8 @@ def report(rows: list[dict], methods: list[str]) -> str:
             lines.append(f"{method}: mean held-out success {threshold:.2f}: {reached}")
         if points:
             frames, minutes, success, half = points[-1]
-            lines.append(f"{method}: at {frames:,} frames ({minutes:.1f} min): {success:.3f} ± {half:.3f}")
+            spread = "one seed" if math.isnan(half) else f"± {half:.3f}"
+            lines.append(f"{method}: at {frames:,} frames ({minutes:.1f} min): {success:.3f} ({spread})")
     return "\n".join(lines)
 
 
