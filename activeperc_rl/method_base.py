@@ -21,7 +21,7 @@ from activeperc_env.core import usable_cpus
 from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import A2CConfig, RunConfig, Section
 from activeperc_rl.envs import LOOKER, MOVER
-from activeperc_rl.losses import JointA2CLoss
+from activeperc_rl.losses import JointA2CLoss, SharedEncoderA2CLoss
 from activeperc_rl.models import JOINT, NUM_ACTIONS, NetworkConfig, make_actor, make_critic, make_encoder
 
 
@@ -88,12 +88,13 @@ class Method:
         bonus is weighted by the method's ``looker_entropy_coeff``, a move's by A2C's ``entropy_coeff``."""
         a2c, owner = self.a2c, action_agent or agent
         common = dict(critic_coeff=a2c.critic_coeff, loss_critic_type="l2", functional=False)
+        common["reuse_features"] = a2c.reuse_features
         if owner == JOINT:  # the move's entropy bonus and the look's apart, as the other methods weigh them
             look = self.options.looker_entropy_coeff
             loss = JointA2CLoss(actor, critic, entropy_coeff=a2c.entropy_coeff, look_entropy_coeff=look, **common)
         else:
             coeff = self.options.looker_entropy_coeff if owner == LOOKER else a2c.entropy_coeff
-            loss = A2CLoss(actor, critic, entropy_coeff=coeff, **common)
+            loss = SharedEncoderA2CLoss(actor, critic, entropy_coeff=coeff, **common)
         loss.set_keys(
             reward=(agent, "reward"),
             action=(owner, "action"),

@@ -10,6 +10,8 @@ share one encoder (as in the usual pixel A2C); the looker's networks have their 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import torch
@@ -129,6 +131,17 @@ class Encoder(nn.Module):
         self.layout = BearingLayout(bearing_bins, h, fov, pan_range) if bearing_bins else None
         columns = bearing_bins or w
         self.linear = nn.Sequential(nn.Linear(in_ch * h * columns + 2 * frames + range_rays, hidden_size), nn.ReLU())
+        self.kept: list | None = None  # within reusing(): the inputs and features of every pass
+
+    @contextmanager
+    def reusing(self) -> Iterator[None]:
+        """Within the block, a pass on the very tensors of an earlier one (with gradients enabled alike) returns its
+        features: an actor and a critic on one encoder read one pass, and its backward pass is taken once."""
+        self.kept = []
+        try:
+            yield
+        finally:
+            self.kept = None
 
     def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
         """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3 * frames)``, ``pan (*batch,
@@ -140,6 +153,17 @@ class Encoder(nn.Module):
                 "the env the encoder's frame_stack, and leave out transforms that permute or scale the image, such as "
                 "ToTensorImage)"
             )
+        if self.kept is not None:
+            key = (image, pan, ranges, torch.is_grad_enabled())
+            for seen, features in self.kept:
+                if all(a is b for a, b in zip(seen, key, strict=True)):  # the same tensors, and grad mode
+                    return features
+            features = self._features(image, pan, ranges)
+            self.kept.append((key, features))
+            return features
+        return self._features(image, pan, ranges)
+
+    def _features(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None) -> torch.Tensor:
         batch = image.shape[:-3]
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
         x = self.conv(x)

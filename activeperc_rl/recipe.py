@@ -35,8 +35,11 @@ ENV = "env"
 PRESETS = Path(__file__).resolve().parent / "presets"
 """The named presets: ``NAME.yaml`` each (``activeperc-train --preset NAME``)."""
 LEGACY_DEFAULTS = {"frames": 300_000, "looker_lr": 3e-5, "looker_credit": "trajectory", "bearing_bins": 0}
+LEGACY_DEFAULTS |= {"reuse_features": False}
 """The defaults, before 2026-12-05, of the options whose default has changed since: a run saved then (a flat
 ``config.yaml``) that lacks one of them was trained with this value."""
+ADDED_OPTIONS = {"a2c": {"reuse_features": False}}
+"""The options added since runs were saved by section, each with the value that a saved run lacking it ran with."""
 
 
 def _option_owners() -> dict[str, str]:
@@ -143,7 +146,11 @@ class TrainConfig:
             return cls.from_dict(values)
         values = values | {ENV: saved_room(values[ENV])}
         if any(name in values for name in SECTIONS):
-            return cls.from_dict(values)
+            saved = {name: values.get(name) or {} for name in ADDED_OPTIONS}
+            added = {
+                name: options | saved[name] for name, options in ADDED_OPTIONS.items() if isinstance(saved[name], dict)
+            }
+            return cls.from_dict(values | added)
         flat = LEGACY_DEFAULTS | {key: value for key, value in values.items() if key != ENV}
         method = flat.pop("method", "meta")
         if method not in METHOD_CLASSES:

@@ -28,10 +28,10 @@ from activeperc_rl.runtime import portable
 TRACES = Path(__file__).resolve().parent / "golden" / "traces.json"
 TRAINING = TRACES.with_name("training.json")
 TRAINING_RUNS = {
-    # the runs of their day (2026-11): the pilot's recipe in room v1, the defaults then
-    "meta": ("meta", ("--preset", "pilot", "--version", "1")),
-    "fixed_forward": ("fixed_forward", ("--preset", "pilot", "--version", "1")),
-    # today's defaults, the recipe that works in the default room (stored from the flags that gave it before)
+    # the runs of their day (2026-11): the pilot's recipe in room v1, the defaults then, with TorchRL's A2CLoss
+    "meta": ("meta", ("--preset", "pilot", "--version", "1", "--no-reuse-features")),
+    "fixed_forward": ("fixed_forward", ("--preset", "pilot", "--version", "1", "--no-reuse-features")),
+    # today's defaults, the recipe that works in the default room
     "meta_default": ("meta", ()),
     "fixed_forward_default": ("fixed_forward", ()),
 }

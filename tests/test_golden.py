@@ -92,8 +92,7 @@ def portable_runs(tmp_path_factory) -> dict[str, Path]:
 @needs_avx2
 @pytest.mark.parametrize("run", TRAINING_RUNS)
 def test_portable_training_gives_the_stored_metrics(portable_runs, run):
-    """The first iterations of seed 0 in portable mode log the committed run's metrics, on Intel and AMD CPUs. The
-    default recipe's are those the same run gave before it became the defaults (with five flags)."""
+    """The first iterations of seed 0 in portable mode log the committed run's metrics, on Intel and AMD CPUs."""
     ours, stored = training_trace(portable_runs[run]), TRAINED[run]
     assert ours["metrics"] == stored["metrics"], (
         f"first difference at {first_difference(ours['metrics'], stored['metrics'])}"

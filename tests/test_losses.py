@@ -9,15 +9,19 @@ from tensordict import TensorDict
 from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import ProbabilisticActor
+from torchrl.objectives import ValueEstimators
 
 from activeperc_rl.losses import (
     BEST_LOOK_SHARES,
     LOOKER_CREDITS,
     JointA2CLoss,
     MetaEvaluationLoss,
+    SharedEncoderA2CLoss,
     trajectory_ids,
     trajectory_means,
 )
+from activeperc_rl.models import Encoder, make_critic
+from activeperc_rl.models import make_actor as make_mover_actor
 
 PAN = ("mover", "observation", "pan")
 LOOKER_PAN = ("looker", "observation", "pan")
@@ -608,3 +612,66 @@ def test_the_joint_agent_without_a_look_entropy_coeff_gets_no_push_towards_rando
     probs = torch.softmax(logits.detach(), -1).reshape(3, 3)
     # within a move the gradient is proportional to the looks' probabilities: it only moves mass between the moves
     torch.testing.assert_close(grad / probs, (grad.sum(-1) / probs.sum(-1))[:, None].expand(3, 3))
+
+
+def _mover_a2c(reuse_features: bool):
+    """An A2C loss of a mover whose actor and critic share one small encoder (the same weights for either choice)."""
+    torch.manual_seed(0)
+    encoder = Encoder(12, 16, (4,), 8)
+    actor, critic = make_mover_actor(encoder, 8, "mover"), make_critic(encoder, 8, "mover")
+    loss = SharedEncoderA2CLoss(
+        actor, critic, entropy_coeff=0.01, critic_coeff=0.5, loss_critic_type="l2", reuse_features=reuse_features
+    )
+    loss.set_keys(reward=("mover", "reward"), action=("mover", "action"), sample_log_prob=("mover", "action_log_prob"))
+    loss.make_value_estimator(ValueEstimators.GAE, gamma=0.99, lmbda=0.95)
+    return loss, encoder
+
+
+def _mover_rollout(actor, rooms=3, steps=6):
+    """A rollout ``[rooms, steps]`` of random views, with an episode ending inside it, and the actor's actions."""
+    generator = torch.Generator().manual_seed(1)
+    images = torch.randint(0, 256, (rooms, steps + 1, 12, 16, 3), dtype=torch.uint8, generator=generator)
+    pans = torch.rand(rooms, steps + 1, 1, generator=generator)
+    done = torch.zeros(rooms, steps, 1, dtype=torch.bool)
+    done[1, 2] = True
+    observation = lambda t: TensorDict({"image": images[:, t], "pan": pans[:, t]}, [rooms, steps])  # noqa: E731
+    td = TensorDict(
+        {
+            "mover": {"observation": observation(slice(0, steps))},
+            "next": {
+                "mover": {"observation": observation(slice(1, steps + 1)), "reward": torch.randn(rooms, steps, 1)},
+                "done": done,
+                "terminated": done.clone(),
+            },
+        },
+        [rooms, steps],
+    )
+    with torch.no_grad():
+        return actor(td)
+
+
+def test_the_a2c_loss_reusing_the_encoders_features_is_torchrls_to_rounding():
+    """One encoder pass with gradients per update (plus one without, for the next observations) gives TorchRL's
+    A2C losses and gradients, which take four passes and two backward passes through the encoder."""
+    results = []
+    for reuse in (False, True):
+        loss, encoder = _mover_a2c(reuse)
+        td = _mover_rollout(loss.actor_network)
+        passes = []
+        encoder._features = _counted(encoder._features, passes)
+        out = loss(td)
+        sum(v for k, v in out.items() if k.startswith("loss_")).backward()
+        grads = {name: p.grad for name, p in encoder.named_parameters()}
+        results.append(({k: v.detach() for k, v in out.items()}, grads, len(passes)))
+    (old, old_grads, old_passes), (new, new_grads, new_passes) = results
+    assert new_passes == 2 and old_passes > new_passes
+    torch.testing.assert_close(new, old)
+    torch.testing.assert_close(new_grads, old_grads)
+
+
+def _counted(function, calls: list):
+    def counted(*args):
+        calls.append(args)
+        return function(*args)
+
+    return counted

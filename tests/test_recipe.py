@@ -92,6 +92,17 @@ def test_a_flat_config_saved_before_the_sections_is_read_with_the_defaults_of_it
     old = TrainConfig.from_saved(bare)
     assert old.env.version == 0 and old.run.frames == LEGACY_DEFAULTS["frames"]
     assert old.options.looker_lr == 3e-5 and old.network.bearing_bins == 0  # epsilon, not ia2c's, is dropped
+    assert not config.a2c.reuse_features and not old.a2c.reuse_features  # they ran TorchRL's A2CLoss as it ships
+
+
+def test_a_run_saved_by_section_before_an_option_existed_reads_the_value_it_ran_with():
+    saved = TrainConfig.from_dict({}).to_dict()
+    assert TrainConfig.from_saved(saved).a2c.reuse_features
+    del saved["a2c"]["reuse_features"]
+    assert TrainConfig.from_saved(saved).a2c.reuse_features is False
+    assert TrainConfig.from_saved(saved | {"a2c": None}).a2c.reuse_features is False
+    with pytest.raises(ValueError, match="'a2c' must be a mapping"):
+        TrainConfig.from_saved(saved | {"a2c": 3})
 
 
 @pytest.mark.skipif(not portable.has_avx2(), reason="the fixture's run is portable: its kernels are pinned to AVX2")
