@@ -9,6 +9,8 @@ Training options after ``--`` are ``activeperc-train``'s flags::
 
     python benchmarks/time_to_success.py --seeds 0 1 2 3 4 --csv benchmarks/results/cpu2/time_to_success.csv
     python benchmarks/time_to_success.py --seeds 0 --every 100000 -- --frames 300000 --num-envs 32
+    python benchmarks/time_to_success.py --no-train --csv benchmarks/results/cpu2/time_to_success.csv \\
+        --figure docs/figures/time_to_success.png
 """
 
 from __future__ import annotations
@@ -37,12 +39,19 @@ REFERENCE = "fixed_forward"
 
 
 def train_to(config, out: Path, frames: int) -> dict:
-    """Train the run in ``out`` (afresh, or on from its checkpoint) to ``frames``; its last row of metrics.csv."""
+    """Train the run in ``out`` (afresh, or on from its checkpoint) to ``frames``; its last row of metrics.csv. A stop
+    signal (Ctrl-C, SIGTERM), after which training saves its checkpoint and returns early, stops the benchmark."""
     from activeperc_rl.train import train
 
     train(config.replace(frames=frames, eval_episodes=0), out, resume=(out / CHECKPOINT).is_file(), progress=False)
     with open(out / METRICS, newline="") as file:
-        return list(csv.DictReader(file))[-1]
+        last = list(csv.DictReader(file))[-1]
+    if int(last["frames"]) < frames:
+        raise SystemExit(
+            f"time_to_success: stopped at {int(last['frames']):,} of {frames:,} frames in {out}; the same"
+            " command goes on from there"
+        )
+    return last
 
 
 def measured(config, out: Path, frames: int, episodes: int) -> dict:
@@ -136,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--runs", type=Path, default=Path("runs/time_to_success"), help="run directories")
     parser.add_argument("--csv", type=Path, default=Path("runs/time_to_success/time_to_success.csv"))
     parser.add_argument("--figure", type=Path, help="the figure (default: beside the CSV, .png)")
+    parser.add_argument("--no-train", action="store_true", help="report and draw what is measured, train nothing")
     return parser
 
 
@@ -155,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     steps = list(range(args.every, config.run.frames, args.every)) + [config.run.frames]
     print(f"time_to_success: {methods}, seeds {args.seeds}, {steps[-1]:,} frames in steps of {args.every:,}")
     print(harness.machine_line(harness.machine_info()), flush=True)
-    for method in methods:
+    for method in [] if args.no_train else methods:
         for seed in args.seeds:
             run = config.replace(method=method, seed=seed)
             out = args.runs / method / f"seed{seed}"

@@ -9,6 +9,7 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
     python benchmarks/train_speed.py --seconds 5 --rounds 1 --json
     python benchmarks/train_speed.py --methods meta --collector inprocess process ray --workers 2
     python benchmarks/train_speed.py --methods meta --parts --seconds 10 --rounds 1 --no-peer
+    python benchmarks/train_speed.py --methods meta fixed_forward --flip reuse_features --no-peer
 """
 
 from __future__ import annotations
@@ -18,10 +19,15 @@ import contextlib
 import gc
 import json
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import harness
 import peer
+
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.atomic import atomic_path
 
 GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("meta >= 1.0x MiniWorld raw env speed on 2 cores", 1.0),
@@ -29,7 +35,7 @@ GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
 )
 GPU_GOAL = 20_000  # meta training frames/s on an H100 with 16 cores
 PART_LABELS = harness.SIMULATOR_PARTS | {"forward": "network forward passes (Head.forward)"}
-WIDTH = 24  # of a run's label in the report
+WIDTH = 32  # of a run's label in the report
 
 
 def collection_parts() -> list[tuple[type, tuple[str, ...]]]:
@@ -82,11 +88,13 @@ def bench_method(
     backend: str = "mujoco",
     recipe: dict | None = None,
     version: int | None = None,
+    options: dict | None = None,
 ) -> dict:
     """Train ``name`` on ``device`` for ``warmup_iters`` untimed iterations, then for ``seconds``; return its figures.
 
     The method is built as ``activeperc-train`` builds it: the default :class:`~activeperc_rl.recipe.TrainConfig` (or
-    the preset ``recipe``, in room ``version`` if given) but for the method, ``num_envs`` (``None``: the default),
+    the preset ``recipe``, in room ``version`` if given, with the training ``options`` by name) but for the method,
+    ``num_envs`` (``None``: the default),
     ``collect_workers`` (workers per environment; their start is not timed) and ``collector`` (``process`` or
     ``ray``, for the workers).
 
@@ -103,6 +111,7 @@ def bench_method(
 
     changes = {"method": name, "device": device, "collect_workers": collect_workers, "collector": collector}
     changes["backend"] = backend
+    changes |= options or {}
     if num_envs is not None:
         changes["num_envs"] = num_envs
     if version is not None:
@@ -180,7 +189,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     from activeperc_rl.collection import COLLECTORS
     from activeperc_rl.config import DEVICES
     from activeperc_rl.methods import METHODS
-    from activeperc_rl.recipe import PRESETS, TrainConfig
+    from activeperc_rl.recipe import PRESETS, TrainConfig, preset
 
     PRESET_NAMES = sorted(path.stem for path in PRESETS.glob("*.yaml"))
 
@@ -245,11 +254,26 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--preset", choices=PRESET_NAMES, help="time activeperc-train's named preset (default: none)")
     parser.add_argument("--version", type=int, choices=tuple(ROOMS), help="time this room (default: the preset's)")
+    parser.add_argument(
+        "--flip",
+        metavar="OPTION",
+        help="also time each method with this true/false training option flipped (e.g. reuse_features), in the same"
+        " rounds, and print the ratio",
+    )
     harness.add_round_flags(parser, per="method")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
+    parser.add_argument("--out", type=Path, help="also write that JSON object, with the command and date, to this file")
     args = parser.parse_args(argv)
+    harness.refuse_unwritable(parser, {"--out": args.out})
     if args.parts and args.collector != ["inprocess"]:
         parser.error("--parts times the rooms of this process: it needs --collector inprocess")
+    if args.flip is not None:
+        config = TrainConfig.from_dict(preset(args.preset) if args.preset else {})
+        sections = [section for section in config.to_dict().values() if isinstance(section, dict)]
+        values = [section[args.flip] for section in sections if args.flip in section]
+        if not values or not isinstance(values[0], bool):
+            parser.error(f"--flip {args.flip}: not a true/false option of the training config")
+        args.flip_value = not values[0]
     return args
 
 
@@ -325,10 +349,10 @@ def print_iteration(label: str, result: dict) -> None:
 
 
 def print_gain(name: str, label: str, rounds: list[dict[str, dict]]) -> None:
-    """The report's line on how much faster the run ``label`` trained than method ``name`` in this process, round by
-    round."""
+    """The report's line on how much faster the run ``label`` trained than the run ``name`` (a method in this process,
+    or with ``--flip`` the run with the option flipped), round by round."""
     gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
-    print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name} in-process")
+    print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name}")
 
 
 def print_ratios(per_round: dict, goals: dict, cpus: int) -> None:
@@ -353,12 +377,15 @@ def main(argv: list[str] | None = None) -> dict:
 
     machine = describe_machine(args)
     print_header(args, machine)
-    runs = [(name, collector) for name in args.methods for collector in args.collector]
+    runs = [(name, collector, {}) for name in args.methods for collector in args.collector]
+    if args.flip is not None:
+        flipped = {args.flip: args.flip_value}
+        runs = [run for name, collector, _ in runs for run in ((name, collector, {}), (name, collector, flipped))]
 
     def measure(i: int) -> dict[str, dict]:
         results = {}
-        for name, collector in runs:
-            label = run_label(name, collector, args.workers)
+        for name, collector, options in runs:
+            label = run_label(name, collector, args.workers) + "".join(f" [{k}={v}]" for k, v in options.items())
             workers, kind = (0, "process") if collector == "inprocess" else (args.workers, collector)
             results[label] = bench_method(
                 name,
@@ -372,6 +399,7 @@ def main(argv: list[str] | None = None) -> dict:
                 args.backend,
                 preset(args.preset) if args.preset else None,
                 args.version,
+                options,
             )
             print(f"round {i + 1}: train {label:<{WIDTH}}{results[label]['frames_per_s']:9.1f} frames/s", flush=True)
             gc.collect()
@@ -392,9 +420,12 @@ def main(argv: list[str] | None = None) -> dict:
         print_iteration(label, result)
         if args.parts:
             print_parts(label, result)
-    for name, collector in runs:
-        if collector != "inprocess" and name in ours:
+    for name, collector, options in runs:
+        if collector != "inprocess" and name in ours and not options:
             print_gain(name, run_label(name, collector, args.workers), rounds)
+        if options:
+            label = run_label(name, collector, args.workers)
+            print_gain(f"{label} [{args.flip}={args.flip_value}]", label, rounds)
     per_round, ratios, goals = summarise(rounds, peer_rates)
     print_ratios(per_round, goals, machine["usable_cpus"])
 
@@ -416,6 +447,11 @@ def main(argv: list[str] | None = None) -> dict:
     }
     if args.json:
         print(json.dumps(report))
+    if args.out is not None:
+        command = " ".join(["python benchmarks/train_speed.py", *(sys.argv[1:] if argv is None else argv)])
+        saved = report | {"command": command, "cpu": portable.machine(), "date": time.strftime("%Y-%m-%d")}
+        with atomic_path(args.out) as temporary:
+            temporary.write_text(json.dumps(saved, indent=1) + "\n")
     return report
 
 

@@ -110,6 +110,8 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
     [
         ("env_speed", ["--rounds", "0"], "rounds must be >= 1, got 0"),
         ("train_speed", ["--seconds", "0"], "seconds must be > 0, got 0"),
+        ("train_speed", ["--flip", "lr"], "--flip lr: not a true/false option"),
+        ("train_speed", ["--flip", "meta"], "--flip meta: not a true/false option"),
         ("view_profile", ["--views", "0"], "views must be >= 1, got 0"),
         ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
         ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
@@ -347,6 +349,16 @@ def test_train_speed_reports_the_parts_of_every_round_without_the_peer(capsys):
     assert "goal  meta >= 1.0x MiniWorld raw env speed on 2 cores: UNKNOWN" in out
 
 
+def test_train_speed_times_each_method_with_an_option_flipped_in_the_same_rounds(capsys, tmp_path):
+    argv = ["--methods", "fixed_forward", "--num-envs", "2", "--seconds", "0.01", "--warmup-iters", "0"]
+    argv += ["--rounds", "1", "--no-peer", "--flip", "reuse_features", "--out", str(tmp_path / "speed.json")]
+    report = load_script("train_speed").main(argv)
+    assert list(report["methods"]) == ["fixed_forward", "fixed_forward [reuse_features=False]"]
+    assert "gain  fixed_forward" in capsys.readouterr().out
+    saved = json.loads((tmp_path / "speed.json").read_text())
+    assert saved["command"].endswith("--out " + str(tmp_path / "speed.json")) and saved["methods"] == report["methods"]
+
+
 def test_train_speed_parts_need_the_rooms_in_this_process(capsys):
     with pytest.raises(SystemExit):
         load_script("train_speed").main(["--parts", "--collector", "inprocess", "process"])
@@ -550,6 +562,24 @@ def test_time_to_success_scores_each_step_over_seeds_and_resumes_where_it_stoppe
     assert tts.main(args) == 0  # everything measured: nothing trains again
     assert "activeperc-train:" not in capsys.readouterr().out
     assert tts.read_rows(tmp_path / "tts.csv") == rows
+    more = ["--seeds", "0", "1", "2", "--no-train", "--figure", str(tmp_path / "drawn.png")]
+    assert tts.main([*more, *args[3:]]) == 0  # seed 2 is not measured, and not trained
+    assert "activeperc-train:" not in capsys.readouterr().out and (tmp_path / "drawn.png").stat().st_size > 0
+
+
+def test_time_to_success_stops_when_a_stop_signal_ends_a_step_early(tmp_path, monkeypatch):
+    """Training saves its checkpoint and returns early on Ctrl-C or SIGTERM: the benchmark stops there, scoring
+    nothing."""
+    tts = load_script("time_to_success")
+
+    def stopped_training(config, out, resume, progress):
+        out.mkdir(parents=True)
+        (out / tts.METRICS).write_text("frames,time_s\n64,1.0\n")
+
+    monkeypatch.setattr("activeperc_rl.train.train", stopped_training)
+    with pytest.raises(SystemExit, match="stopped at 64 of 100 frames"):
+        tts.main(["--every", "100", "--runs", str(tmp_path / "runs"), "--csv", str(tmp_path / "tts.csv")])
+    assert not (tmp_path / "tts.csv").exists()
 
 
 def test_time_to_success_refuses_a_training_flag_it_cannot_use(capsys):
