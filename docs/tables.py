@@ -425,6 +425,88 @@ def h200_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
+def time_to_success() -> str:
+    """Held-out success of the default command against training frames and minutes (``time_to_success.py``): mean ±
+    95 % interval over the seeds every point has, per method, and where each threshold is first reached."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from time_to_success import THRESHOLDS, curve
+
+    rows = read(f"{BENCH}/cpu2/time_to_success.csv")
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    curves = {method: {frames: rest for frames, *rest in curve(rows, method)} for method in methods}
+    seeds = {method: len({r["seed"] for r in rows if r["method"] == method}) for method in methods}
+
+    def cell(point) -> str:
+        if point is None:
+            return ""
+        minutes, success, half = point
+        spread = "" if half != half else f" ± {half:.2f}"  # NaN: one seed
+        return f"{success:.2f}{spread} ({minutes:.1f} min)"
+
+    steps = sorted({round(frames, -5) for points in curves.values() for frames in points})
+    nearest = {m: {round(f, -5): p for f, p in points.items()} for m, points in curves.items()}
+    lines = [[f"{step:,}"] + [cell(nearest[m].get(step)) for m in methods] for step in steps]
+    for threshold in THRESHOLDS:
+        firsts = []
+        for method in methods:
+            first = next(((f, p) for f, p in curves[method].items() if p[1] >= threshold), None)
+            firsts.append(f"{first[0]:,} frames, {first[1][0]:.1f} min" if first else "not reached")
+        lines.append([f"first mean ≥ {threshold:.2f}", *firsts])
+    header = ["frames"] + [f"`{m}`, {seeds[m]} seed{'s' * (seeds[m] > 1)}" for m in methods]
+    commands = [
+        {
+            "command": f"python benchmarks/time_to_success.py --seeds {' '.join(sorted({r['seed'] for r in rows}))}"
+            " --every 100000 --csv benchmarks/results/cpu2/time_to_success.csv"
+        }
+        | r
+        for r in rows
+    ]
+    return markdown(header, lines) + runs_footer([{k: r[k] for k in ("command", "machine", "date")} for r in commands])
+
+
+def default_speed() -> str:
+    """Training frames/s of the default recipe with each method's A2C reading one encoder pass and TorchRL's as it
+    ships (``train_speed.py --flip reuse_features --parts``), in the same rounds; then where an iteration goes, in
+    milliseconds."""
+    report = json.loads((ROOT / BENCH / "cpu2" / "train_speed_v3.json").read_text())
+    runs = report["methods"]
+    methods = [label for label in runs if "[" not in label]
+    flipped = {label: runs[f"{label} [reuse_features=False]"] for label in methods}
+    lines = []
+    for label in methods:
+        gains = [a / b for a, b in zip(*(r["frames_per_s_rounds"] for r in (runs[label], flipped[label])), strict=True)]
+        rates = [f"{r['frames_per_s']:,.0f}" for r in (runs[label], flipped[label])]
+        lines.append([f"`{label}`", *rates, ", ".join(f"{g:.2f}x" for g in gains)])
+    speed = markdown(["method", "frames/s, `reuse_features`", "TorchRL's `A2CLoss`", "gain, by round"], lines)
+
+    def per_iteration(result: dict, seconds: float) -> str:
+        return f"{1e3 * seconds / result['iterations']:.0f}"
+
+    parts = [
+        (PART_NAMES[part], lambda r, part=part: r["parts_s"][part]) for part in next(iter(runs.values()))["parts_s"]
+    ]
+    parts += [
+        ("collection, the rest (TorchRL, tensordict, sampling)", lambda r: r["collect_s"] - sum(r["parts_s"].values())),
+        ("learning (losses, backward passes, optimizers)", lambda r: r["learn_s"]),
+        ("the iteration", lambda r: r["seconds"]),
+    ]
+    columns = [(label, variant) for label in methods for variant in (runs[label], flipped[label])]
+    rows = [[name] + [per_iteration(r, get(r)) for _, r in columns] for name, get in parts]
+    header = ["ms per iteration"] + [f"`{label}`{'' if r is runs[label] else ', A2CLoss'}" for label, r in columns]
+    machine = f"{report['machine']['usable_cpus']}-core {report['cpu']}"
+    footer = runs_footer([{"command": report["command"], "machine": machine, "date": report["date"]}])
+    return speed + "\n" + markdown(header, rows) + footer
+
+
+PART_NAMES = {
+    "move": "physics",
+    "look": "the looks",
+    "reset": "resets",
+    "render": "renders",
+    "forward": "network forward passes in collection",
+}
+
+
 def train_flags() -> str:
     """``activeperc-train``'s flags as its ``--help`` gives them: each flag, its default and its meaning."""
     from activeperc_rl.cli import build_parser
@@ -492,6 +574,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "fig1-ablations": ("results.md", fig1_ablations),
     "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
+    "time-to-success": ("performance.md", time_to_success),
+    "default-speed": ("performance.md", default_speed),
     "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
     "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
     "h100-train": ("performance.md", h100_train),
