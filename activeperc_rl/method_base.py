@@ -87,8 +87,12 @@ class Method:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``); a look's entropy
         bonus is weighted by the method's ``looker_entropy_coeff``, a move's by A2C's ``entropy_coeff``."""
         a2c, owner = self.a2c, action_agent or agent
-        common = dict(critic_coeff=a2c.critic_coeff, loss_critic_type="l2", functional=False)
-        common["reuse_features"] = a2c.reuse_features
+        common = dict(
+            critic_coeff=a2c.critic_coeff,
+            loss_critic_type="l2",
+            functional=False,
+            reuse_features=a2c.reuse_features,
+        )
         if owner == JOINT:  # the move's entropy bonus and the look's apart, as the other methods weigh them
             look = self.options.looker_entropy_coeff
             loss = JointA2CLoss(actor, critic, entropy_coeff=a2c.entropy_coeff, look_entropy_coeff=look, **common)

@@ -34,8 +34,13 @@ SECTIONS: dict[str, type[Section]] = {cls.NAME: cls for cls in (RunConfig, A2CCo
 ENV = "env"
 PRESETS = Path(__file__).resolve().parent / "presets"
 """The named presets: ``NAME.yaml`` each (``activeperc-train --preset NAME``)."""
-LEGACY_DEFAULTS = {"frames": 300_000, "looker_lr": 3e-5, "looker_credit": "trajectory", "bearing_bins": 0}
-LEGACY_DEFAULTS |= {"reuse_features": False}
+LEGACY_DEFAULTS = {
+    "frames": 300_000,
+    "looker_lr": 3e-5,
+    "looker_credit": "trajectory",
+    "bearing_bins": 0,
+    "reuse_features": False,
+}
 """The defaults, before 2026-12-05, of the options whose default has changed since: a run saved then (a flat
 ``config.yaml``) that lacks one of them was trained with this value."""
 ADDED_OPTIONS = {"a2c": {"reuse_features": False}}
