@@ -453,15 +453,11 @@ def time_to_success() -> str:
             firsts.append(f"{first[0]:,} frames, {first[1][0]:.1f} min" if first else "not reached")
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts])
     header = ["frames"] + [f"`{m}`, {seeds[m]} seed{'s' * (seeds[m] > 1)}" for m in methods]
-    commands = [
-        {
-            "command": f"python benchmarks/time_to_success.py --seeds {' '.join(sorted({r['seed'] for r in rows}))}"
-            " --every 100000 --csv benchmarks/results/cpu2/time_to_success.csv"
-        }
-        | r
-        for r in rows
-    ]
-    return markdown(header, lines) + runs_footer([{k: r[k] for k in ("command", "machine", "date")} for r in commands])
+    seeds = " ".join(sorted({r["seed"] for r in rows}))
+    command = (
+        f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --csv {BENCH}/cpu2/time_to_success.csv"
+    )
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
 def default_speed() -> str:
