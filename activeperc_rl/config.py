@@ -32,6 +32,7 @@ from activeperc_env.warp_backend import BACKENDS
 from activeperc_rl.collection import COLLECTORS
 
 DEVICES = ("auto", "cpu", "cuda")
+LR_SCHEDULES = ("constant", "linear")
 
 
 class Section:
@@ -172,6 +173,9 @@ class A2CConfig(Section):
     """The actor's and the critic's terms and GAE's values read one pass of their shared encoder per update (the same
     loss as TorchRL's A2CLoss to rounding, in half the time); false runs TorchRL's A2CLoss as it ships, as the runs
     saved before this option did."""
+    lr_schedule: str = "constant"
+    """How every learning rate of the run (the mover's, the looker's, the joint agent's) moves over run.frames:
+    'constant', or 'linear' (from its value at the first frame down to 0 at the last)."""
 
     def checks(self) -> dict[str, tuple[bool, str]]:
         """Each field's check."""
@@ -183,6 +187,7 @@ class A2CConfig(Section):
             "critic_coeff": (finite(self.critic_coeff) and self.critic_coeff > 0, "a finite number > 0"),
             "max_grad_norm": (finite(self.max_grad_norm) and self.max_grad_norm > 0, "a finite number > 0"),
             "reuse_features": (isinstance(self.reuse_features, bool), "true or false"),
+            "lr_schedule": (self.lr_schedule in LR_SCHEDULES, f"one of {LR_SCHEDULES}"),
         }
 
 

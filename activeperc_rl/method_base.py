@@ -73,6 +73,7 @@ class Method:
         self.collectors: list[Rollouts] = []
         self.modules: dict[str, nn.Module] = {}
         self.optimizers: dict[str, torch.optim.Optimizer] = {}
+        self.learning_rates: dict[str, float] = {}  # each optimizer's learning rate at the first frame
 
     # ---------------------------------------------------------------- construction helpers
     def _encoder(self, bearing: bool = True):
@@ -173,6 +174,7 @@ class Method:
         return next(collector)
 
     def _optimizer(self, name: str, modules: list[nn.Module], lr: float, kind: str = "adam") -> None:
+        self.learning_rates[name] = lr
         params = list(dict.fromkeys(p for m in modules for p in m.parameters()))
         if kind == "sgd":
             self.optimizers[name] = torch.optim.SGD(params, lr=lr)
@@ -197,6 +199,15 @@ class Method:
             torch.nn.utils.clip_grad_norm_(params, self.a2c.max_grad_norm)
             optimizer.step()
         return {f"{name}/{k}": float(v.detach()) for k, v in losses.items() if v.numel() == 1}
+
+    def schedule_learning_rates(self, frames: int) -> None:
+        """Set every optimizer's learning rate for an iteration that starts after ``frames`` of the run's frames, as
+        A2C's ``lr_schedule`` says."""
+        if self.a2c.lr_schedule == "linear":
+            scale = max(0.0, 1.0 - frames / self.run.frames)
+            for name, optimizer in self.optimizers.items():
+                for group in optimizer.param_groups:
+                    group["lr"] = self.learning_rates[name] * scale
 
     # ---------------------------------------------------------------- interface
     def start(self) -> None:

@@ -40,10 +40,11 @@ LEGACY_DEFAULTS = {
     "looker_credit": "trajectory",
     "bearing_bins": 0,
     "reuse_features": False,
+    "lr_schedule": "constant",
 }
 """The defaults, before 2026-12-05, of the options whose default has changed since: a run saved then (a flat
 ``config.yaml``) that lacks one of them was trained with this value."""
-ADDED_OPTIONS = {"a2c": {"reuse_features": False}}
+ADDED_OPTIONS = {"a2c": {"reuse_features": False, "lr_schedule": "constant"}}
 """The options added since runs were saved by section, each with the value that a saved run lacking it ran with."""
 
 

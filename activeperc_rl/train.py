@@ -60,7 +60,9 @@ from activeperc_rl.runtime.signals import on_stop_signals
 EVAL_NAMES = {"learned": "learned", "camera_held": "learned, camera held forward", "random": "random"}
 
 
-def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True) -> dict:
+def train(
+    config: TrainConfig, out: str | Path, resume: bool = False, progress: bool = True, stop_at: int | None = None
+) -> dict:
     """Train ``config.method`` for ``config.run.frames`` frames into the run directory ``out``.
 
     For this whole process, torch runs on ``config.run.torch_threads`` threads and glibc's ``malloc`` keeps freed
@@ -72,6 +74,9 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         resume: continue the checkpoint in ``out`` up to ``config.run.frames`` (the other options must
             match the saved ones).
         progress: show a progress bar.
+        stop_at: stop with the checkpoint saved (and no evaluation) once this many frames are trained; a resume
+            goes on to ``config.run.frames`` as the run would have without the stop (the learning rates' schedule
+            spans ``config.run.frames``).
 
     Returns:
         ``{"frames", "interrupted", "metrics"}`` and, after a finished run with ``eval_episodes > 0``,
@@ -82,6 +87,8 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
         portable.require_pinned()
     if resume and not (out / CHECKPOINT).is_file():  # checked before claiming, which would create the directory
         raise ValueError(f"no checkpoint at {str(out / CHECKPOINT)!r}")
+    if stop_at is not None and not (is_int(stop_at) and stop_at >= 1):
+        raise ValueError(f"stop_at={stop_at!r} is invalid: expected an int >= 1 (frames)")
     device = torch_device(config.run.device)
     with claim_run_dir(out):
         if resume:
@@ -98,10 +105,12 @@ def train(config: TrainConfig, out: str | Path, resume: bool = False, progress: 
             state = None
         verb = "resuming" if resume else "training"
         print(f"activeperc-train: {verb} {config.method} for {config.run.frames} frames -> {out}", flush=True)
-        return _train(config, out, device, state, progress)
+        return _train(config, out, device, state, progress, min(config.run.frames, stop_at or config.run.frames))
 
 
-def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | None, progress: bool) -> dict:
+def _train(
+    config: TrainConfig, out: Path, device: torch.device, state: dict | None, progress: bool, stop_at: int
+) -> dict:
     """:func:`train` in the claimed run directory ``out``, from the checkpoint ``state`` or afresh (``None``)."""
     keep_freed_memory()  # the learner's large tensors reuse freed memory instead of faulting in fresh pages
     if config.run.torch_threads:
@@ -114,7 +123,7 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
         log = _Log(stack, run, progress)
         last_checkpoint = time.monotonic()
         with _interruptible() as interrupted:
-            while run.frames < config.run.frames and not interrupted():
+            while run.frames < stop_at and not interrupted():
                 start = time.perf_counter()
                 step = run.iterate()
                 log.write(step, run.advance(step, time.perf_counter() - start))
@@ -126,6 +135,9 @@ def _train(config: TrainConfig, out: Path, device: torch.device, state: dict | N
     result = {"frames": run.frames, "interrupted": was_interrupted, "metrics": str(out / METRICS)}
     if was_interrupted:
         print(f"interrupted at {run.frames} frames; checkpoint saved in {out}; continue with --resume --out {out}")
+        return result
+    if run.frames < config.run.frames:
+        print(f"activeperc-train: stopped at {run.frames} frames; continue with --resume --out {out}", flush=True)
         return result
     if config.run.eval_episodes:
         result["eval"] = run.evaluate(progress)
@@ -217,6 +229,7 @@ class _Run:
         """One iteration of the method; a dead worker or diverged learning is an error naming what is kept."""
         kept = f"the checkpoint at {self.saved_frames} frames is kept"
         where = f"iteration {self.iteration + 1} ({self.frames} frames)"
+        self.method.schedule_learning_rates(self.frames)
         try:
             step = self.method.iterate()
         except WorkerError as error:

@@ -39,11 +39,13 @@ REFERENCE = "fixed_forward"
 
 
 def train_to(config, out: Path, frames: int) -> dict:
-    """Train the run in ``out`` (afresh, or on from its checkpoint) to ``frames``; its last row of metrics.csv. A stop
-    signal (Ctrl-C, SIGTERM), after which training saves its checkpoint and returns early, stops the benchmark."""
+    """Train the run in ``out`` (afresh, or on from its checkpoint) to ``frames`` of its ``config.run.frames``; its
+    last row of metrics.csv. A stop signal (Ctrl-C, SIGTERM), after which training saves its checkpoint and returns
+    early, stops the benchmark."""
     from activeperc_rl.train import train
 
-    train(config.replace(frames=frames, eval_episodes=0), out, resume=(out / CHECKPOINT).is_file(), progress=False)
+    resume = (out / CHECKPOINT).is_file()
+    train(config.replace(eval_episodes=0), out, resume=resume, progress=False, stop_at=frames)
     with open(out / METRICS, newline="") as file:
         last = list(csv.DictReader(file))[-1]
     if int(last["frames"]) < frames:

@@ -98,8 +98,9 @@ def test_a_flat_config_saved_before_the_sections_is_read_with_the_defaults_of_it
 def test_a_run_saved_by_section_before_an_option_existed_reads_the_value_it_ran_with():
     saved = TrainConfig.from_dict({}).to_dict()
     assert TrainConfig.from_saved(saved).a2c.reuse_features
-    del saved["a2c"]["reuse_features"]
+    del saved["a2c"]["reuse_features"], saved["a2c"]["lr_schedule"]
     assert TrainConfig.from_saved(saved).a2c.reuse_features is False
+    assert TrainConfig.from_saved(saved).a2c.lr_schedule == "constant"
     assert TrainConfig.from_saved(saved | {"a2c": None}).a2c.reuse_features is False
     with pytest.raises(ValueError, match="'a2c' must be a mapping"):
         TrainConfig.from_saved(saved | {"a2c": 3})

@@ -128,6 +128,24 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     assert sum(int(r["episodes"]) for r in rows) > 0  # episodes ended: the rows are not all empty
 
 
+def test_a_linear_schedule_spans_the_budget_through_a_stop_and_a_resume(tmp_path):
+    """With ``lr_schedule: linear`` every learning rate falls with the frames trained out of ``run.frames``; a run
+    stopped at a frame count (``train(stop_at=...)``) and resumed is the run straight to the end, schedule included."""
+    tiny = ["--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0", "--frames", "800"]
+    whole = run_cli(tmp_path, *tiny, "--lr-schedule", "linear", name="whole")
+    config = cli.config_from_args(cli.build_parser().parse_args([*TINY, *tiny, "--lr-schedule", "linear"]))
+    result = train_module.train(config, tmp_path / "cut", progress=False, stop_at=200)  # 9 iterations of 24 frames
+    assert result["frames"] == 216 and not (tmp_path / "cut" / "eval.json").exists()
+    assert cli.main(["--out", str(tmp_path / "cut"), "--resume", "--no-progress"]) == 0
+    assert_same_run(whole, tmp_path / "cut")
+    optimizers = load_checkpoint(whole / "checkpoint.pt")["method"]["optimizers"]
+    scale = 1 - 792 / 800  # the last iteration starts after 792 frames
+    assert optimizers["mover"]["param_groups"][0]["lr"] == pytest.approx(7e-4 * scale)
+    assert optimizers["looker"]["param_groups"][0]["lr"] == pytest.approx(3e-4 * scale)
+    with pytest.raises(ValueError, match="stop_at=0 is invalid"):
+        train_module.train(config, tmp_path / "other", stop_at=0)
+
+
 def test_a_resumed_run_with_a_frame_stack_is_the_uninterrupted_run(tmp_path):
     """The rooms' past views are part of what a checkpoint holds: a run stopped and resumed stacks the same views
     (and, with best_look, credits the same stacked views of every look)."""
