@@ -825,7 +825,13 @@ def test_eval_names_what_is_not_a_usable_checkpoint(tmp_path, capsys):
     garbage.write_bytes(b"not a checkpoint at all")
     torch.save({"weights": torch.zeros(2)}, foreign)
     empty.mkdir()
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    damaged = bytearray((out / "checkpoint.pt").read_bytes())
+    for i in np.random.default_rng(0).choice(len(damaged) // 2, 200, replace=False) + len(damaged) // 4:
+        damaged[i] ^= 0xFF  # 200 bytes flipped in the middle half: weights and optimizer state
+    (tmp_path / "flipped.pt").write_bytes(damaged)
     for path, named in (
+        (tmp_path / "flipped.pt", "flipped.pt' is damaged: its part 'archive/data/"),
         (garbage, "garbage.pt' cannot be read"),
         (foreign, "foreign.pt' is not an activeperc checkpoint"),
         (empty, "no checkpoint at '" + str(empty / "checkpoint.pt")),

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import zipfile
 from pathlib import Path
 
 import torch
@@ -41,16 +42,21 @@ def save_checkpoint(path: str | Path, state: dict) -> None:
 def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict:
     """Read a checkpoint; with ``config``, check that the checkpoint was trained with it.
 
-    Raises ``ValueError`` naming the file when it is missing or unreadable, or naming the options
+    Raises ``ValueError`` naming the file when it is missing, unreadable or damaged (a part of it that does not match
+    the CRC-32 checksum ``torch.save`` wrote for it), or naming the options
     that differ from ``config`` (those in :data:`RESUMABLE` may differ).
     """
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"no checkpoint at {str(path)!r}")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=False)
+        with zipfile.ZipFile(path) as archive:  # torch.save's archive: a CRC-32 checksum of every part
+            damaged = archive.testzip()
+        state = None if damaged else torch.load(path, map_location="cpu", weights_only=False)
     except Exception as error:  # any unpickling failure means an unusable file
         raise ValueError(f"checkpoint {str(path)!r} cannot be read: {error}") from error
+    if damaged:
+        raise ValueError(f"checkpoint {str(path)!r} is damaged: its part {damaged!r} does not match its checksum")
     if not isinstance(state, dict) or "config" not in state or "method" not in state:
         raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
     if config is not None:
