@@ -47,6 +47,7 @@ from activeperc_rl.runtime.checkpoint import (
     METRICS,
     MetricsLog,
     collection_state,
+    kept_rows,
     load_checkpoint,
     restore_collection,
     restore_method,
@@ -100,6 +101,7 @@ def train(
                     f"frames={config.run.frames} is below the {state['frames']} frames the run in {str(out)!r} has "
                     f"trained: --frames is the total to train to, not an increment"
                 )
+            kept_rows(out / METRICS, state["frames"])  # a damaged log is refused before anything is written
         else:
             check_fresh(out)
             state = None

@@ -434,6 +434,17 @@ def test_a_resume_that_trains_further_keeps_the_old_eval_under_its_frames(tmp_pa
     assert f"eval.json is of the run at {trained} frames; kept as eval_{trained}.json" in capsys.readouterr().err
 
 
+def test_a_resume_refused_for_a_damaged_metrics_log_changes_nothing_in_the_run(tmp_path, capsys):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64")
+    lines = (out / "metrics.csv").read_text().splitlines(keepends=True)
+    (out / "metrics.csv").write_text(lines[0] + "x,2\n" + "".join(lines[1:]))  # a garbled row before the last
+    before = {path.name: path.read_bytes() for path in out.iterdir() if path.is_file()}
+    capsys.readouterr()
+    assert cli.main(["--out", str(out), "--resume", "--frames", "128", "--no-progress"]) == 2
+    assert "metrics.csv', line 2: not a metrics row" in capsys.readouterr().err
+    assert {path.name: path.read_bytes() for path in out.iterdir() if path.is_file()} == before
+
+
 @pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
 def test_cuda_without_a_gpu_is_refused_before_the_run_directory_is_made(tmp_path, capsys):
     assert cli.main([*TINY, "--out", str(tmp_path / "run"), "--device", "cuda"]) == 2

@@ -139,14 +139,36 @@ def config_differences(saved: TrainConfig, config: TrainConfig) -> list[str]:
     return differ
 
 
+def kept_rows(path: Path, keep_until: int) -> list[dict]:
+    """The rows of the metrics log ``path`` up to ``keep_until`` frames (none where there is no file); a torn last
+    row (a kill mid-write) is dropped. A file that is not a metrics log, or a row before the last that does not
+    parse, is a ``ValueError`` naming the file and line."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        rows = list(reader)
+    if tuple(reader.fieldnames or ())[: len(METRIC_COLUMNS)] != METRIC_COLUMNS:
+        raise ValueError(f"{str(path)!r} is not a metrics log: its header is {reader.fieldnames}")
+    kept = []
+    for number, row in enumerate(rows, start=2):
+        whole = None not in row and None not in row.values() and row["frames"].isdigit()
+        if not whole:
+            if number == len(rows) + 1:
+                break
+            raise ValueError(f"{str(path)!r}, line {number}: not a metrics row: {row}")
+        if int(row["frames"]) <= keep_until:
+            kept.append(row)
+    return kept
+
+
 class MetricsLog:
     """``metrics.csv``: one row per iteration, flushed as it is written.
 
     Args:
         path: the CSV file.
         keep_until: on resume, the checkpoint's frame count: rows beyond it are dropped (the file is
-            rewritten atomically); ``None`` starts a new file. A file that is not a metrics log, or a
-            row before the last that does not parse, is a ``ValueError`` naming the file and line.
+            rewritten atomically; :func:`kept_rows`); ``None`` starts a new file.
         columns: the header: :data:`METRIC_COLUMNS` and the method's own columns after them. A resumed log
             with other method columns (an older run's) keeps its rows, blank where a column is new.
     """
@@ -154,31 +176,13 @@ class MetricsLog:
     def __init__(self, path: str | Path, keep_until: int | None = None, columns: tuple[str, ...] = METRIC_COLUMNS):
         self.path = Path(path)
         self.columns = columns
-        rows = self._read(keep_until) if keep_until is not None and self.path.is_file() else []
+        rows = kept_rows(self.path, keep_until) if keep_until is not None else []
         with atomic_path(self.path) as temporary, open(temporary, "w", newline="") as f:
             writer = csv.DictWriter(f, columns, extrasaction="ignore")
             writer.writeheader()
             writer.writerows(rows)
         self._file = open(self.path, "a", newline="")  # kept open for the run
         self._writer = csv.DictWriter(self._file, columns)
-
-    def _read(self, keep_until: int) -> list[dict]:
-        """The rows up to ``keep_until`` frames; a torn last row (a kill mid-write) is dropped."""
-        with open(self.path, newline="") as f:
-            reader = csv.DictReader(f)
-            rows = list(reader)
-        if tuple(reader.fieldnames or ())[: len(METRIC_COLUMNS)] != METRIC_COLUMNS:
-            raise ValueError(f"{str(self.path)!r} is not a metrics log: its header is {reader.fieldnames}")
-        kept = []
-        for number, row in enumerate(rows, start=2):
-            whole = None not in row and None not in row.values() and row["frames"].isdigit()
-            if not whole:
-                if number == len(rows) + 1:
-                    break
-                raise ValueError(f"{str(self.path)!r}, line {number}: not a metrics row: {row}")
-            if int(row["frames"]) <= keep_until:
-                kept.append(row)
-        return kept
 
     def append(self, row: dict) -> None:
         """Write one row (keys: the log's columns; a missing one is left blank) and flush it."""
