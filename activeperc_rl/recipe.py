@@ -123,7 +123,8 @@ class TrainConfig:
         """A config from a nested mapping (a YAML preset: ``method``, the sections, the method's section, ``env``),
         then ``flags`` (flat option names: :meth:`replace`) on top; the room's flags join its mapping before the room
         is built, so that a ``version`` flag brings that room's defaults. A preset may hold several methods'
-        sections; the run reads its own. An unknown key raises ``ValueError`` naming it."""
+        sections; the run reads its own. Every value is checked as written, also where a flag replaces it: an unknown
+        key or a bad value raises ``ValueError`` naming it."""
         if not isinstance(values, dict):
             raise ValueError(f"a training config must be a mapping of options, got {type(values).__name__}")
         flags = dict(flags or {})
@@ -136,6 +137,10 @@ class TrainConfig:
         env = {} if values.get(ENV) is None else values[ENV]  # "env:" with nothing under it: the room's defaults
         if not isinstance(env, dict):
             raise ValueError(f"'{ENV}' must be a mapping of room options, got {env!r}")
+        for name in sorted(set(values) & set(METHODS) - {method}):  # other methods' sections, checked as written
+            METHOD_CLASSES[name].Options.from_dict(values[name])
+        if room:
+            EnvConfig.from_kwargs(**env)  # the room as written, before the flags change it
         parts = {name: values.get(name) for name in SECTIONS}
         config = cls(method=method, options=values.get(method), env=env | room, **parts)
         return config.replace(**flags) if flags else config

@@ -4,6 +4,7 @@ presets ship with the package, and runs saved before the sections existed resume
 import ast
 import csv
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -81,6 +82,20 @@ def test_the_pilot_preset_is_the_figure_1_pilots_runs():
         if method.startswith("meta_eps"):
             flags["epsilon"] = float(method.removeprefix("meta_eps"))
         assert config.replace(frames=300_000) == TrainConfig.from_dict(preset("pilot"), flags), path.name
+
+
+@pytest.mark.parametrize(
+    "written, flags, named",
+    [
+        ({"run": {"frames": 3.7}}, {"frames": 64}, "run.frames=3.7"),
+        ({"env": {"fov": 500}}, {"fov": 60}, "fov=500"),
+        ({"meta": {"epsilon": 7}}, {"epsilon": 0.1}, "meta.epsilon=7"),
+        ({"meta": {"epsilon": 7}}, {"method": "ia2c"}, "meta.epsilon=7"),
+    ],
+)
+def test_a_preset_is_checked_as_written_where_a_flag_replaces_a_value(written, flags, named):
+    with pytest.raises(ValueError, match=re.escape(named)):
+        TrainConfig.from_dict(written, flags)
 
 
 def test_a_flat_config_saved_before_the_sections_is_read_with_the_defaults_of_its_day():
