@@ -17,6 +17,7 @@ from activeperc_env.rooms import DEFAULT, LEGACY_DEFAULT, ROOMS, Room
 LOOKER_REWARDS = ("shared", "none")
 LAYERS = ("depth", "segmentation")  # the optional image layers of the observation, each an EnvConfig flag
 MAX_RANGE_RAYS = 64
+MAX_CYCLES = 1_000_000  # an episode of more cycles (over 55 hours at 5 Hz) would, in practice, never end
 ROOM_DEFAULTS = tuple(dict.fromkeys(name for room in ROOMS.values() for name in room.defaults))
 """The options whose default is each room's own (``None`` in :class:`EnvConfig` until it is built)."""
 
@@ -97,7 +98,8 @@ class EnvConfig:
     forward_speed: float = 0.75
     """Speed of the 'forward' action, in m/s (in v0 the wheels' rim speed)."""
     turn_speed: float | None = None
-    """Yaw rate of 'turn left' and 'turn right', in degrees per second (v3's base slides instead: unused there)."""
+    """Yaw rate of 'turn left' and 'turn right', in degrees per second (v3's base slides and never turns: it takes
+    only its default)."""
     range_rays: int | None = None
     """Rays of the range sensor (the observation's 'range'; 0: none), spread evenly from -90 to +90 degrees of the
     heading; they meet walls and occluders, never the goal."""
@@ -130,14 +132,16 @@ class EnvConfig:
             "num_obstacles": is_int(self.num_obstacles) and 0 <= self.num_obstacles <= len(OCCLUDER_BODIES),
             "heading_spread": is_number(self.heading_spread) and 0.0 <= self.heading_spread <= 180.0,
             "goal_distance": is_number(self.goal_distance) and 2.5 <= self.goal_distance <= 4.6,
-            "max_cycles": is_int(self.max_cycles) and self.max_cycles >= 1,
+            "max_cycles": is_int(self.max_cycles) and 1 <= self.max_cycles <= MAX_CYCLES,
             "pan_range": is_number(self.pan_range) and 0.0 <= self.pan_range <= 180.0,
             "pan_step": is_number(self.pan_step) and 0.0 < self.pan_step <= 180.0,
             "control_hz": is_number(self.control_hz)
             and 0.5 <= self.control_hz <= 1 / timestep
             and _whole_steps(self.control_hz, timestep),
             "forward_speed": is_number(self.forward_speed) and 0.0 < self.forward_speed <= 3.0,
-            "turn_speed": is_number(self.turn_speed) and 0.0 < self.turn_speed <= 720.0,
+            "turn_speed": is_number(self.turn_speed)
+            and 0.0 < self.turn_speed <= 720.0
+            and (self.room.turns or self.turn_speed == self.room.defaults["turn_speed"]),
             "range_rays": is_int(self.range_rays) and 0 <= self.range_rays <= MAX_RANGE_RAYS,
             "range_max": is_number(self.range_max) and 0.2 <= self.range_max <= 10.0,
             "depth": isinstance(self.depth, bool),
@@ -151,13 +155,15 @@ class EnvConfig:
             "num_obstacles": f"an int in [0, {len(OCCLUDER_BODIES)}]",
             "heading_spread": "degrees in [0, 180]",
             "goal_distance": "metres in [2.5, 4.6]",
-            "max_cycles": "an int >= 1",
+            "max_cycles": f"an int in [1, {MAX_CYCLES:,}]",
             "pan_range": "degrees in [0, 180]",
             "pan_step": "degrees in (0, 180]",
             "control_hz": f"a rate in [0.5, {1 / timestep:g}] Hz whose period is a whole number of the v{self.version} "
             f"room's {timestep * 1000:g} ms physics steps ({1 / timestep:g} / k Hz, e.g. {_rates(timestep)})",
             "forward_speed": "m/s in (0, 3]",
-            "turn_speed": "degrees per second in (0, 720]",
+            "turn_speed": "degrees per second in (0, 720]"
+            if self.room.turns
+            else f"its default, {self.room.defaults['turn_speed']:g}: the v{self.version} room's base never turns",
             "range_rays": f"an int in [0, {MAX_RANGE_RAYS}]",
             "range_max": "metres in [0.2, 10]",
             "depth": "True or False",

@@ -128,17 +128,16 @@ class RunConfig(Section):
             "num_envs": (int_in(self.num_envs, 1, MAX_ENVS), f"an int in 1 .. {MAX_ENVS}"),
             "rollout_length": (int_in(self.rollout_length, 2, 2**20), "an int in 2 .. 1048576"),
             "device": (self.device in DEVICES, f"one of {DEVICES}"),
-            "backend": (
-                self.backend in BACKENDS and not (self.backend == "warp" and self.collect_workers),
-                f"one of {BACKENDS} ('warp' steps its rooms in this process: collect_workers 0)",
-            ),
+            "backend": (self.backend in BACKENDS, f"one of {BACKENDS}"),
             "torch_threads": (int_in(self.torch_threads, 0, 4096), "an int in 0 .. 4096"),
             "learner_threads": (int_in(self.learner_threads, 0, 4096), "an int in 0 .. 4096"),
             "portable": (isinstance(self.portable, bool), "true or false"),
             "collect_workers": (
                 workers_ok and self.collect_workers <= self.num_envs,
                 f"an int in 0 .. num_envs ({self.num_envs})",
-            ),
+            )
+            if self.backend != "warp"
+            else (self.collect_workers == 0, "0 with backend 'warp', which steps its rooms in this process"),
             "collector": (self.collector in COLLECTORS, f"one of {COLLECTORS}"),
             "ray_address": (
                 isinstance(self.ray_address, str) and self.ray_address != "",

@@ -24,6 +24,8 @@ from activeperc_env.rooms import DEFAULT
         ("goal_distance", 2.0),
         ("goal_distance", 5.0),
         ("max_cycles", 0),
+        ("max_cycles", 10**30),  # episodes that would never end
+        ("turn_speed", 90),  # the default room's base never turns
         ("pan_range", 190),
         ("pan_step", 0),
         ("control_hz", 0),

@@ -23,7 +23,7 @@ from activeperc_env.rooms import ROOMS
 from activeperc_rl.envs import ActivePerceptionEnv, make_env
 
 # fast episodes: each move lasts 0.5 s, so a scripted mover reaches the goal in 5-16 cycles
-FAST = dict(num_obstacles=0, control_hz=2.0, forward_speed=2.0, turn_speed=40.0)
+FAST = dict(num_obstacles=0, control_hz=2.0, forward_speed=2.0)
 
 
 def random_looker():
