@@ -321,6 +321,15 @@ def test_ctrl_c_while_the_run_starts_writes_nothing(tmp_path, monkeypatch, capsy
     run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")  # the same command again
 
 
+def test_a_run_with_a_damaged_config_file_resumes_from_its_checkpoints_config(tmp_path, capsys):
+    out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
+    written = (out / "config.yaml").read_text()
+    (out / "config.yaml").write_text("run: {frames: [\n")  # garbled
+    assert cli.main(["--resume", "--out", str(out), "--frames", "128", "--no-progress"]) == 0
+    assert "config.yaml" in capsys.readouterr().err and int(read_metrics(out)[-1]["frames"]) >= 128
+    assert (out / "config.yaml").read_text() == written.replace("frames: 64", "frames: 128")  # written again
+
+
 def test_a_run_killed_before_its_config_was_written_resumes_from_its_checkpoint(tmp_path):
     out = run_cli(tmp_path, "--method", "fixed_forward", "--frames", "64", "--eval-episodes", "0")
     (out / "config.yaml").unlink()  # killed between the first checkpoint and config.yaml

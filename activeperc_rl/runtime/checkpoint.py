@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import sys
 import zipfile
 from pathlib import Path
 
@@ -202,10 +203,16 @@ def save_yaml(config: TrainConfig, path: str | Path) -> None:
 
 def load_run_config(out: str | Path) -> TrainConfig:
     """The config saved in a run directory: its ``config.yaml`` or, in a run killed between its first checkpoint
-    and that file, the checkpoint's (``ValueError`` naming the directory when there is neither)."""
-    path = Path(out) / CONFIG
+    and that file or one whose file is damaged (said on stderr), the checkpoint's (``ValueError`` naming the directory
+    when there is neither)."""
+    path, checkpoint = Path(out) / CONFIG, Path(out) / CHECKPOINT
     if path.is_file():
-        return TrainConfig.from_saved(load_yaml(path))
-    if (Path(out) / CHECKPOINT).is_file():
-        return TrainConfig.from_saved(load_checkpoint(Path(out) / CHECKPOINT)["config"])
+        try:
+            return TrainConfig.from_saved(load_yaml(path))
+        except ValueError as error:
+            if not checkpoint.is_file():
+                raise
+            print(f"activeperc-train: warning: {error}; the run's config is read from {checkpoint}", file=sys.stderr)
+    if checkpoint.is_file():
+        return TrainConfig.from_saved(load_checkpoint(checkpoint)["config"])
     raise ValueError(f"{str(out)!r} holds no run to resume (no {CONFIG})")
