@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import time
 from contextlib import suppress
@@ -166,6 +167,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except (WorkerError, TrainingError, OSError) as error:  # a worker died; training diverged; the disk is full, ...
         print(f"activeperc-train: error: {error}", file=sys.stderr)
+        if isinstance(error, WorkerError) and argv is None:  # the command, not a caller of main()
+            # with torch's shared-memory manager dead (a helper of the workers), freeing the tensors this process
+            # shared would abort it at exit: the run's files are closed, so it exits without Python's clean-up
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(1)
         return 1
     except KeyboardInterrupt:  # a second stop signal, or one while the run starts or evaluates
         saved = out is not None and (Path(out) / CHECKPOINT).is_file()

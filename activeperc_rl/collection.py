@@ -214,10 +214,18 @@ class Rollouts:
         """Copy the live policy's and looker's weights into every worker's (through ``map_fn``, which names a worker
         that died instead of waiting for it)."""
         policy = TensorDict.from_module(self._policy).data.clone().cpu()
-        self.collector.map_fn("update_policy_weights_", [(policy,)] * self.workers)
-        if self._looker is not None:
-            looker = {k: v.detach().clone().cpu() for k, v in self._looker.state_dict().items()}
-            self.collector.map_fn("env.looker.load_state_dict", [(looker,)] * self.workers)
+        try:
+            self.collector.map_fn("update_policy_weights_", [(policy,)] * self.workers)
+            if self._looker is not None:
+                looker = {k: v.detach().clone().cpu() for k, v in self._looker.state_dict().items()}
+                self.collector.map_fn("env.looker.load_state_dict", [(looker,)] * self.workers)
+        except RuntimeError as error:  # the tensors go through torch's shared-memory manager, a process of its own
+            if _dead_worker(self.collector, wait=DEATH_GRACE) is not None:
+                raise
+            raise WorkerError(
+                f"{self.name}: the weights could not be sent to its workers ({error}): torch's shared-memory manager"
+                " (torch_shm_manager), through which they go, has died or cannot be reached"
+            ) from None
 
     def state(self) -> dict:
         """Where the rooms stand between two rollouts (each worker's rooms and torch random state)."""
@@ -246,6 +254,10 @@ class Rollouts:
     def shutdown(self) -> None:
         """Stop the collector and its workers (each closes its env)."""
         self.collector.shutdown()
+        # TorchRL's weight-sync scheme stops its threads in __del__; at exit (a collector kept alive by a
+        # traceback) that would wait forever on a thread that can no longer start: stop them now
+        for scheme in (getattr(self.collector, "_weight_sync_schemes", None) or {}).values():
+            scheme.shutdown()
 
     @contextmanager
     def _named_failures(self):

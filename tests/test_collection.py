@@ -126,18 +126,27 @@ def worker_pids(parent: int) -> list[int]:
     return [int(line.split()[0]) for line in ps.splitlines() if int(line.split()[1]) == parent and "spawn_main" in line]
 
 
-def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_checkpoint(tmp_path):
+def shm_managers() -> set[int]:
+    """Process ids of the torch_shm_manager processes running (each a session of its own, under init)."""
+    ps = subprocess.run(["ps", "-ww", "-e", "-o", "pid=,args="], capture_output=True, text=True).stdout
+    return {int(line.split()[0]) for line in ps.splitlines() if line.split()[1:] == ["torch_shm_manager"]}
+
+
+# a worker, or the helper process through which the weights reach the workers (it hung the run for good)
+@pytest.mark.parametrize("killed", ["worker", "torch_shm_manager"])
+def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_checkpoint(tmp_path, killed):
     out = tmp_path / "run"
     command = [
         sys.executable, "-m", "activeperc_rl.cli", *TINY, "--out", str(out), "--frames", "10000000",
         "--collect-workers", "2", "--method", "fixed_forward",
     ]  # fmt: skip
+    earlier = shm_managers()
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
     try:
         wait_for_rows(out, 3)
-        (worker, *_) = worker_pids(process.pid)
+        (worker, *_) = worker_pids(process.pid) if killed == "worker" else shm_managers() - earlier
         os.kill(worker, signal.SIGKILL)
         _, err = process.communicate(timeout=120)
     finally:
@@ -145,7 +154,9 @@ def test_a_worker_killed_mid_run_ends_the_run_with_one_line_and_a_resumable_chec
             os.killpg(process.pid, signal.SIGKILL)
     assert process.returncode == 1, err
     assert "Traceback" not in err
-    assert "died (killed by SIGKILL)" in err and f"continue with --resume --out {out}" in err
+    # without the manager, sending the weights fails, or a worker that reaches for it first aborts
+    named = ["died (killed by SIGKILL)"] if killed == "worker" else ["(torch_shm_manager)", "died (killed by SIGABRT)"]
+    assert any(name in err for name in named) and f"continue with --resume --out {out}" in err
     assert not survivors(process.pid), "a worker outlived the run"
     trained = load_checkpoint(out / "checkpoint.pt")["frames"]
     target = str(trained + 64)
