@@ -10,6 +10,7 @@ Run it from the repository root (MiniWorld comes with the ``bench`` extra; ``pip
     python benchmarks/train_speed.py --methods meta --collector inprocess process ray --workers 2
     python benchmarks/train_speed.py --methods meta --parts --seconds 10 --rounds 1 --no-peer
     python benchmarks/train_speed.py --methods meta fixed_forward --flip reuse_features --no-peer
+    python benchmarks/train_speed.py --methods meta --variant num_envs=32 rollout_length=8 --no-peer
 """
 
 from __future__ import annotations
@@ -260,6 +261,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         help="also time each method with this true/false training option flipped (e.g. reuse_features), in the same"
         " rounds, and print the ratio",
     )
+    parser.add_argument(
+        "--variant",
+        metavar="OPTION=VALUE",
+        nargs="+",
+        help="also time each method with these training options changed (e.g. num_envs=32 rollout_length=8), in the"
+        " same rounds, and print the ratio",
+    )
     harness.add_round_flags(parser, per="method")
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     parser.add_argument("--out", type=Path, help="also write that JSON object, with the command and date, to this file")
@@ -274,7 +282,30 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         if not values or not isinstance(values[0], bool):
             parser.error(f"--flip {args.flip}: not a true/false option of the training config")
         args.flip_value = not values[0]
+    if args.flip is not None and args.variant:
+        parser.error("--flip and --variant: one or the other")
+    args.changed = {args.flip: args.flip_value} if args.flip is not None else variant(parser, args)
     return args
+
+
+def variant(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict:
+    """The options of ``--variant`` by name, their values read as YAML (``32``, ``linear``, ``false``), checked by
+    building the config."""
+    import yaml
+
+    from activeperc_rl.recipe import TrainConfig, preset
+
+    changed = {}
+    for item in args.variant or []:
+        name, equals, value = item.partition("=")
+        if not equals or not name:
+            parser.error(f"--variant {item!r}: expected OPTION=VALUE")
+        changed[name] = yaml.safe_load(value)
+    try:
+        TrainConfig.from_dict(preset(args.preset) if args.preset else {}, changed)
+    except ValueError as error:
+        parser.error(f"--variant: {error}")
+    return changed
 
 
 def describe_machine(args: argparse.Namespace) -> dict:
@@ -350,7 +381,7 @@ def print_iteration(label: str, result: dict) -> None:
 
 def print_gain(name: str, label: str, rounds: list[dict[str, dict]]) -> None:
     """The report's line on how much faster the run ``label`` trained than the run ``name`` (a method in this process,
-    or with ``--flip`` the run with the option flipped), round by round."""
+    or with ``--flip`` or ``--variant`` the run with options changed), round by round."""
     gain = [r[label]["frames_per_s"] / r[name]["frames_per_s"] for r in rounds]
     print(f"gain  {label:<{WIDTH}}{harness.spread(gain, 2, 'x')} the frames/s of {name}")
 
@@ -378,9 +409,8 @@ def main(argv: list[str] | None = None) -> dict:
     machine = describe_machine(args)
     print_header(args, machine)
     runs = [(name, collector, {}) for name in args.methods for collector in args.collector]
-    if args.flip is not None:
-        flipped = {args.flip: args.flip_value}
-        runs = [run for name, collector, _ in runs for run in ((name, collector, {}), (name, collector, flipped))]
+    if args.changed:
+        runs = [run for name, collector, _ in runs for run in ((name, collector, {}), (name, collector, args.changed))]
 
     def measure(i: int) -> dict[str, dict]:
         results = {}
@@ -425,7 +455,7 @@ def main(argv: list[str] | None = None) -> dict:
             print_gain(name, run_label(name, collector, args.workers), rounds)
         if options:
             label = run_label(name, collector, args.workers)
-            print_gain(f"{label} [{args.flip}={args.flip_value}]", label, rounds)
+            print_gain(label + "".join(f" [{k}={v}]" for k, v in options.items()), label, rounds)
     per_round, ratios, goals = summarise(rounds, peer_rates)
     print_ratios(per_round, goals, machine["usable_cpus"])
 

@@ -460,6 +460,33 @@ def time_to_success() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
+def lr_schedule() -> str:
+    """Held-out success of ``meta`` against training frames with the learning rates held and falling linearly
+    (``--lr-schedule linear``), mean ± 95 % interval over seeds, and the paired difference at each point."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from time_to_success import curve
+
+    held = [r for r in read(f"{BENCH}/cpu2/time_to_success.csv") if r["method"] == "meta"]
+    linear = read(f"{BENCH}/cpu2/time_to_success_lr_linear.csv")
+    points = [{frames: rest for frames, *rest in curve(rows, "meta")} for rows in (held, linear)]
+    success = [{(r["seed"], r["frames"]): float(r["success_rate"]) for r in rows} for rows in (held, linear)]
+    lines = []
+    for frames in sorted(set(points[0]) & set(points[1])):
+        cells = [f"{p[frames][1]:.2f} ± {p[frames][2]:.2f}" for p in points]
+        seeds = sorted({seed for seed, at in success[1] if at == str(frames)} & {s for s, _ in success[0]})
+        paired = [success[1][s, str(frames)] - success[0][s, str(frames)] for s in seeds]
+        mean, half = mean_ci(paired)
+        lines.append([f"{frames:,}", *cells, f"{mean:+.2f} ± {half:.2f}"])
+    header = ["frames", "`constant` (the default)", "`linear`", "linear − constant, paired by seed"]
+    seeds = " ".join(sorted({r["seed"] for r in linear}))
+    command = (
+        f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --reference none --csv"
+        f" {BENCH}/cpu2/time_to_success_lr_linear.csv -- --lr-schedule linear"
+    )
+    footer = runs_footer([{"command": command} | r for r in linear]).removesuffix(".\n")
+    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`), so no minutes.\n"
+
+
 def default_speed() -> str:
     """Training frames/s of the default recipe with each method's A2C reading one encoder pass and TorchRL's as it
     ships (``train_speed.py --flip reuse_features --parts``), in the same rounds; then where an iteration goes, in
@@ -571,6 +598,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
+    "lr-schedule": ("performance.md", lr_schedule),
     "default-speed": ("performance.md", default_speed),
     "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
     "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),

@@ -112,6 +112,8 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
         ("train_speed", ["--seconds", "0"], "seconds must be > 0, got 0"),
         ("train_speed", ["--flip", "lr"], "--flip lr: not a true/false option"),
         ("train_speed", ["--flip", "meta"], "--flip meta: not a true/false option"),
+        ("train_speed", ["--variant", "num_envs=x"], "--variant: run.num_envs='x' is invalid"),
+        ("train_speed", ["--variant", "num_envs"], "--variant 'num_envs': expected OPTION=VALUE"),
         ("view_profile", ["--views", "0"], "views must be >= 1, got 0"),
         ("portable_speed", ["--frames", "0"], "frames must be >= 1, got 0"),
         ("portable_speed", ["--method", "nothing"], "invalid choice: 'nothing'"),
@@ -349,14 +351,17 @@ def test_train_speed_reports_the_parts_of_every_round_without_the_peer(capsys):
     assert "goal  meta >= 1.0x MiniWorld raw env speed on 2 cores: UNKNOWN" in out
 
 
-def test_train_speed_times_each_method_with_an_option_flipped_in_the_same_rounds(capsys, tmp_path):
+def test_train_speed_times_each_method_with_options_changed_in_the_same_rounds(capsys, tmp_path):
     argv = ["--methods", "fixed_forward", "--num-envs", "2", "--seconds", "0.01", "--warmup-iters", "0"]
-    argv += ["--rounds", "1", "--no-peer", "--flip", "reuse_features", "--out", str(tmp_path / "speed.json")]
-    report = load_script("train_speed").main(argv)
+    argv += ["--rounds", "1", "--no-peer", "--out", str(tmp_path / "speed.json")]
+    report = load_script("train_speed").main([*argv, "--variant", "reuse_features=false", "rollout_length=4"])
+    assert list(report["methods"]) == ["fixed_forward", "fixed_forward [reuse_features=False] [rollout_length=4]"]
+    assert report["methods"]["fixed_forward [reuse_features=False] [rollout_length=4]"]["frames_per_iteration"] == 8
+    report = load_script("train_speed").main([*argv, "--flip", "reuse_features"])
     assert list(report["methods"]) == ["fixed_forward", "fixed_forward [reuse_features=False]"]
     assert "gain  fixed_forward" in capsys.readouterr().out
     saved = json.loads((tmp_path / "speed.json").read_text())
-    assert saved["command"].endswith("--out " + str(tmp_path / "speed.json")) and saved["methods"] == report["methods"]
+    assert saved["command"].endswith("--flip reuse_features") and saved["methods"] == report["methods"]
 
 
 def test_train_speed_parts_need_the_rooms_in_this_process(capsys):
