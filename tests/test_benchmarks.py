@@ -577,7 +577,7 @@ def test_time_to_success_stops_when_a_stop_signal_ends_a_step_early(tmp_path, mo
     nothing."""
     tts = load_script("time_to_success")
 
-    def stopped_training(config, out, resume, progress):
+    def stopped_training(config, out, resume, progress, stop_at):
         out.mkdir(parents=True)
         (out / tts.METRICS).write_text("frames,time_s\n64,1.0\n")
 
