@@ -453,9 +453,13 @@ def main(argv: list[str] | None = None) -> dict:
     for name, collector, options in runs:
         if collector != "inprocess" and name in ours and not options:
             print_gain(name, run_label(name, collector, args.workers), rounds)
-        if options:
+        if options:  # the gain of the default over a flipped option, of a variant over the default
             label = run_label(name, collector, args.workers)
-            print_gain(label + "".join(f" [{k}={v}]" for k, v in options.items()), label, rounds)
+            changed = label + "".join(f" [{k}={v}]" for k, v in options.items())
+            if args.flip is not None:
+                print_gain(changed, label, rounds)
+            else:
+                print_gain(label, changed, rounds)
     per_round, ratios, goals = summarise(rounds, peer_rates)
     print_ratios(per_round, goals, machine["usable_cpus"])
 

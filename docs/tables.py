@@ -487,20 +487,21 @@ def lr_schedule() -> str:
     return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`), so no minutes.\n"
 
 
-def default_speed() -> str:
-    """Training frames/s of the default recipe with each method's A2C reading one encoder pass and TorchRL's as it
-    ships (``train_speed.py --flip reuse_features --parts``), in the same rounds; then where an iteration goes, in
-    milliseconds."""
-    report = json.loads((ROOT / BENCH / "cpu2" / "train_speed_v3.json").read_text())
+def speed_of_variants(report_name: str, variants: dict[str, str]) -> str:
+    """Training frames/s of each method in the ``train_speed.py --out`` report ``report_name`` as each of two
+    ``variants`` ran it (the suffix of its label in the report: its options, or ``""``: as the recipe has it, each
+    with its name in the table), in the same rounds, the first's gain over the second by round; then where an
+    iteration goes, in milliseconds."""
+    report = json.loads((ROOT / BENCH / "cpu2" / report_name).read_text())
     runs = report["methods"]
     methods = [label for label in runs if "[" not in label]
-    flipped = {label: runs[f"{label} [reuse_features=False]"] for label in methods}
     lines = []
     for label in methods:
-        gains = [a / b for a, b in zip(*(r["frames_per_s_rounds"] for r in (runs[label], flipped[label])), strict=True)]
-        rates = [f"{r['frames_per_s']:,.0f}" for r in (runs[label], flipped[label])]
+        pair = [runs[label + suffix] for suffix in variants]
+        gains = [a / b for a, b in zip(*(r["frames_per_s_rounds"] for r in pair), strict=True)]
+        rates = [f"{r['frames_per_s']:,.0f}" for r in pair]
         lines.append([f"`{label}`", *rates, ", ".join(f"{g:.2f}x" for g in gains)])
-    speed = markdown(["method", "frames/s, `reuse_features`", "TorchRL's `A2CLoss`", "gain, by round"], lines)
+    speed = markdown(["method", *(f"frames/s, {name}" for name in variants.values()), "gain, by round"], lines)
 
     def per_iteration(result: dict, seconds: float) -> str:
         return f"{1e3 * seconds / result['iterations']:.0f}"
@@ -513,12 +514,11 @@ def default_speed() -> str:
         ("learning (losses, backward passes, optimizers)", lambda r: r["learn_s"]),
         ("the iteration", lambda r: r["seconds"]),
     ]
-    columns = [(label, variant) for label in methods for variant in (runs[label], flipped[label])]
+    columns = [(f"`{label}`, {name}", runs[label + suffix]) for label in methods for suffix, name in variants.items()]
     rows = [[name] + [per_iteration(r, get(r)) for _, r in columns] for name, get in parts]
-    header = ["ms per iteration"] + [f"`{label}`{'' if r is runs[label] else ', A2CLoss'}" for label, r in columns]
     machine = f"{report['machine']['usable_cpus']}-core {report['cpu']}"
     footer = runs_footer([{"command": report["command"], "machine": machine, "date": report["date"]}])
-    return speed + "\n" + markdown(header, rows) + footer
+    return speed + "\n" + markdown(["ms per iteration", *(name for name, _ in columns)], rows) + footer
 
 
 PART_NAMES = {
@@ -599,7 +599,19 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
     "lr-schedule": ("performance.md", lr_schedule),
-    "default-speed": ("performance.md", default_speed),
+    "default-speed": (
+        "performance.md",
+        lambda: speed_of_variants(
+            "train_speed_v3.json", {"": "`reuse_features`", " [reuse_features=False]": "TorchRL's `A2CLoss`"}
+        ),
+    ),
+    "rollout-shape-speed": (
+        "performance.md",
+        lambda: speed_of_variants(
+            "train_speed_shape.json",
+            {" [num_envs=32] [rollout_length=8]": "32 rooms x 8 cycles", "": "16 x 16 (the default)"},
+        ),
+    ),
     "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
     "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
     "h100-train": ("performance.md", h100_train),
