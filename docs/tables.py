@@ -460,31 +460,65 @@ def time_to_success() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
-def lr_schedule() -> str:
-    """Held-out success of ``meta`` against training frames with the learning rates held and falling linearly
-    (``--lr-schedule linear``), mean ± 95 % interval over seeds, and the paired difference at each point."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    from time_to_success import curve
+RECIPE_OPTIONS = {  # column: (CSV of time_to_success.py's meta rows, the training flags, the column it is paired with)
+    "constant (the default)": ("time_to_success.csv", "", None),
+    "linear": ("time_to_success_lr_linear.csv", "--lr-schedule linear", "constant (the default)"),
+    "linear, 32 x 8": (
+        "time_to_success_lr_linear_32x8.csv",
+        "--lr-schedule linear --num-envs 32 --rollout-length 8",
+        "linear",
+    ),
+}
+"""The options of the default recipe measured by ``time_to_success.py``, each beside the recipe it changes."""
 
-    held = [r for r in read(f"{BENCH}/cpu2/time_to_success.csv") if r["method"] == "meta"]
-    linear = read(f"{BENCH}/cpu2/time_to_success_lr_linear.csv")
-    points = [{frames: rest for frames, *rest in curve(rows, "meta")} for rows in (held, linear)]
-    success = [{(r["seed"], r["frames"]): float(r["success_rate"]) for r in rows} for rows in (held, linear)]
+
+def recipe_options() -> str:
+    """Held-out success of ``meta`` against training frames for each of :data:`RECIPE_OPTIONS`, mean ± 95 % interval
+    over seeds (with the mean minutes of training of the runs made one core each), the paired differences by seed,
+    and the frames and minutes at which each first reaches a threshold."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from time_to_success import THRESHOLDS, curve
+
+    rows = {}
+    for label, (name, _, _) in RECIPE_OPTIONS.items():
+        rows[label] = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == "meta"]
+    one_core = [label for label, (_, flags, _) in RECIPE_OPTIONS.items() if flags]  # two runs at a time, one core each
+    points = {label: {f: rest for f, *rest in curve(rows[label], "meta")} for label in RECIPE_OPTIONS}
+    success = {label: {(r["seed"], int(r["frames"])): float(r["success_rate"]) for r in rows[label]} for label in rows}
+    pairs = [(label, other) for label, (_, _, other) in RECIPE_OPTIONS.items() if other]
+
+    def cell(label: str, frames: int) -> str:
+        minutes, mean, half = points[label][frames]
+        return f"{mean:.2f} ± {half:.2f}" + (f" ({minutes:.1f} min)" if label in one_core else "")
+
+    def paired(label: str, other: str, frames: int) -> str:
+        seeds = sorted({seed for seed, at in success[label] if at == frames} & {s for s, _ in success[other]})
+        mean, half = mean_ci([success[label][s, frames] - success[other][s, frames] for s in seeds])
+        return f"{mean:+.2f} ± {half:.2f}"
+
     lines = []
-    for frames in sorted(set(points[0]) & set(points[1])):
-        cells = [f"{p[frames][1]:.2f} ± {p[frames][2]:.2f}" for p in points]
-        seeds = sorted({seed for seed, at in success[1] if at == str(frames)} & {s for s, _ in success[0]})
-        paired = [success[1][s, str(frames)] - success[0][s, str(frames)] for s in seeds]
-        mean, half = mean_ci(paired)
-        lines.append([f"{frames:,}", *cells, f"{mean:+.2f} ± {half:.2f}"])
-    header = ["frames", "`constant` (the default)", "`linear`", "linear − constant, paired by seed"]
-    seeds = " ".join(sorted({r["seed"] for r in linear}))
-    command = (
-        f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --reference none --csv"
-        f" {BENCH}/cpu2/time_to_success_lr_linear.csv -- --lr-schedule linear"
-    )
-    footer = runs_footer([{"command": command} | r for r in linear]).removesuffix(".\n")
-    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`), so no minutes.\n"
+    for frames in sorted(set.intersection(*(set(p) for p in points.values()))):
+        cells = [cell(label, frames) for label in RECIPE_OPTIONS]
+        lines.append([f"{frames:,}", *cells, *(paired(label, other, frames) for label, other in pairs)])
+    for threshold in THRESHOLDS:
+        firsts = []
+        for label in RECIPE_OPTIONS:
+            first = next(((f, p) for f, p in points[label].items() if p[1] >= threshold), None)
+            where = f"{first[0]:,} frames" + (f", {first[1][0]:.1f} min" if label in one_core else "") if first else ""
+            firsts.append(where or "not reached")
+        lines.append([f"first mean ≥ {threshold:.2f}", *firsts, *([""] * len(pairs))])
+    header = ["frames", *RECIPE_OPTIONS, *(f"{label} − {other.split()[0]}, by seed" for label, other in pairs)]
+    commands = []
+    for label in one_core:
+        name, flags, _ = RECIPE_OPTIONS[label]
+        seeds = " ".join(sorted({r["seed"] for r in rows[label]}))
+        command = (
+            f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --reference none"
+            f" --csv {BENCH}/cpu2/{name} -- {flags}"
+        )
+        commands += [{"command": command} | r for r in rows[label]]
+    footer = runs_footer(commands).removesuffix(".\n")
+    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`).\n"
 
 
 def speed_of_variants(report_name: str, variants: dict[str, str]) -> str:
@@ -598,7 +632,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
-    "lr-schedule": ("performance.md", lr_schedule),
+    "recipe-options": ("performance.md", recipe_options),
     "default-speed": (
         "performance.md",
         lambda: speed_of_variants(
