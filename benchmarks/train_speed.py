@@ -379,6 +379,11 @@ def print_iteration(label: str, result: dict) -> None:
     )
 
 
+def options_label(options: dict) -> str:
+    """What a run's label adds for its changed ``options``: `` [name=value]`` each."""
+    return "".join(f" [{k}={v}]" for k, v in options.items())
+
+
 def print_gain(name: str, label: str, rounds: list[dict[str, dict]]) -> None:
     """The report's line on how much faster the run ``label`` trained than the run ``name`` (a method in this process,
     or with ``--flip`` or ``--variant`` the run with options changed), round by round."""
@@ -415,7 +420,7 @@ def main(argv: list[str] | None = None) -> dict:
     def measure(i: int) -> dict[str, dict]:
         results = {}
         for name, collector, options in runs:
-            label = run_label(name, collector, args.workers) + "".join(f" [{k}={v}]" for k, v in options.items())
+            label = run_label(name, collector, args.workers) + options_label(options)
             workers, kind = (0, "process") if collector == "inprocess" else (args.workers, collector)
             results[label] = bench_method(
                 name,
@@ -455,7 +460,7 @@ def main(argv: list[str] | None = None) -> dict:
             print_gain(name, run_label(name, collector, args.workers), rounds)
         if options:  # the gain of the default over a flipped option, of a variant over the default
             label = run_label(name, collector, args.workers)
-            changed = label + "".join(f" [{k}={v}]" for k, v in options.items())
+            changed = label + options_label(options)
             if args.flip is not None:
                 print_gain(changed, label, rounds)
             else:

@@ -425,6 +425,12 @@ def h200_train() -> str:
     return markdown(header, lines) + runs_footer(rows)
 
 
+def first_reached(points: dict, threshold: float) -> tuple | None:
+    """The first of a curve's ``{frames: (minutes, success, half-width)}`` points whose mean success reaches
+    ``threshold``, as ``(frames, point)``, or ``None``."""
+    return next(((f, p) for f, p in points.items() if p[1] >= threshold), None)
+
+
 def time_to_success() -> str:
     """Held-out success of the default command against training frames and minutes (``time_to_success.py``): mean ±
     95 % interval over the seeds every point has, per method, and where each threshold is first reached."""
@@ -449,7 +455,7 @@ def time_to_success() -> str:
     for threshold in THRESHOLDS:
         firsts = []
         for method in methods:
-            first = next(((f, p) for f, p in curves[method].items() if p[1] >= threshold), None)
+            first = first_reached(curves[method], threshold)
             firsts.append(f"{first[0]:,} frames, {first[1][0]:.1f} min" if first else "not reached")
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts])
     header = ["frames"] + [f"`{m}`, {seeds[m]} seed{'s' * (seeds[m] > 1)}" for m in methods]
@@ -492,7 +498,7 @@ def recipe_options() -> str:
         return f"{mean:.2f} ± {half:.2f}" + (f" ({minutes:.1f} min)" if label in one_core else "")
 
     def paired(label: str, other: str, frames: int) -> str:
-        seeds = sorted({seed for seed, at in success[label] if at == frames} & {s for s, _ in success[other]})
+        seeds = [seed for seed, at in success[label] if at == frames and (seed, at) in success[other]]
         mean, half = mean_ci([success[label][s, frames] - success[other][s, frames] for s in seeds])
         return f"{mean:+.2f} ± {half:.2f}"
 
@@ -503,9 +509,11 @@ def recipe_options() -> str:
     for threshold in THRESHOLDS:
         firsts = []
         for label in RECIPE_OPTIONS:
-            first = next(((f, p) for f, p in points[label].items() if p[1] >= threshold), None)
-            where = f"{first[0]:,} frames" + (f", {first[1][0]:.1f} min" if label in one_core else "") if first else ""
-            firsts.append(where or "not reached")
+            first = first_reached(points[label], threshold)
+            if first is None:
+                firsts.append("not reached")
+            else:
+                firsts.append(f"{first[0]:,} frames" + (f", {first[1][0]:.1f} min" if label in one_core else ""))
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts, *([""] * len(pairs))])
     header = ["frames", *RECIPE_OPTIONS, *(f"{label} − {other.split()[0]}, by seed" for label, other in pairs)]
     commands = []
