@@ -1,7 +1,8 @@
 """PettingZoo adapters: the AEC env (mover and looker take turns) and the parallel env.
 
 A cycle is the mover's turn then the looker's turn. The mover's reward for its move is
-given as soon as it moves (so the looker's ``last()`` sees it when ``looker_reward='shared'``);
+given as soon as it moves (so the looker's ``last()`` sees it when ``looker_reward='shared'``; with
+``'own_turn'`` the looker's share comes with its own step);
 the episode ends at the end of the cycle in which the robot reached the goal or
 ``max_cycles`` ran out, after the looker's turn.
 """
@@ -18,7 +19,7 @@ from activeperc_env.config import EnvConfig
 from activeperc_env.core import Simulator
 from activeperc_env.rooms import DEFAULT, ROOMS, with_version_history
 from activeperc_env.spaces import check_action, looker_space, mover_space, observation_space, state_space
-from activeperc_env.viewer import RENDER_MODES, OneRoomRendering
+from activeperc_env.viewer import RENDER_MODES, OneRoomRendering, check_render_mode
 
 MOVER, LOOKER = "mover_0", "looker_0"
 
@@ -96,7 +97,8 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
 
     Rewards:
         The mover gets ``1 - 0.2 * t / max_cycles`` in the cycle ``t`` in which it reaches the
-        goal, else 0. The looker gets the same (``looker_reward='shared'``) or 0 (``'none'``).
+        goal, else 0. The looker gets the same (``looker_reward='shared'``, at the mover's turn, or
+        ``'own_turn'``, at its own) or 0 (``'none'``).
 
     Starting State:
         Seeded per episode: the robot on the west side, heading within 90 degrees of the
@@ -130,6 +132,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         obs = self._observe()
         self._obs = {MOVER: obs, LOOKER: obs}
         self._pending = (False, False, {})  # the ends and outcome of the cycle's move, applied after the look
+        self._looker_due = 0.0  # with looker_reward='own_turn': the looker's reward of the move, given after its look
         self.agent_selection = MOVER
         if self.render_mode == "human":
             self.render()
@@ -157,13 +160,16 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         self._cumulative_rewards[agent] = 0.0
         if agent == MOVER:
             result = self.sim.move(np.array([action]))
-            self.rewards = {MOVER: float(result.reward[0]), LOOKER: float(result.looker_reward[0])}
+            looker_reward = float(result.looker_reward[0])
+            own_turn = self.config.looker_reward == "own_turn"
+            self.rewards = {MOVER: float(result.reward[0]), LOOKER: 0.0 if own_turn else looker_reward}
             self._pending = (bool(result.terminated[0]), bool(result.truncated[0]), result.outcome())
+            self._looker_due = looker_reward if own_turn else 0.0
             self._obs[LOOKER] = self._observe()
             self.agent_selection = LOOKER
         else:
             self.sim.look(np.array([action]))
-            self.rewards = dict.fromkeys(self.agents, 0.0)
+            self.rewards = {MOVER: 0.0, LOOKER: self._looker_due}
             self._obs[MOVER] = self._observe()
             terminated, truncated, outcome = self._pending
             self.terminations = dict.fromkeys(self.agents, terminated)
@@ -233,6 +239,15 @@ def _copy(obs: dict) -> dict:
     return {key: value.copy() for key, value in obs.items()}
 
 
+class _OrderEnforcing(wrappers.OrderEnforcingWrapper):
+    """PettingZoo's order-enforcing wrapper whose ``render`` passes on the mode some libraries give (RLlib's)."""
+
+    def render(self, mode: str | None = None):
+        """The env's ``render`` (``mode`` may only repeat its ``render_mode``)."""
+        check_render_mode(mode, self.unwrapped.render_mode)
+        return super().render()
+
+
 def env(render_mode: str | None = None, **config):
     """The AEC env wrapped in PettingZoo's order-enforcing wrapper (the usual entry point)."""
-    return wrappers.OrderEnforcingWrapper(raw_env(render_mode=render_mode, **config))
+    return _OrderEnforcing(raw_env(render_mode=render_mode, **config))

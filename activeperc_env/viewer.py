@@ -12,6 +12,15 @@ from activeperc_env.gl import missing_display
 RENDER_MODES = ["human", "rgb_array"]
 
 
+def check_render_mode(mode: str | None, render_mode: str | None) -> None:
+    """Refuse a ``mode`` given to ``render()`` other than ``None`` or the env's own ``render_mode``."""
+    if mode is not None and mode != render_mode:
+        raise ValueError(
+            f"render({mode!r}) asks for another mode than the env's render_mode={render_mode!r}: the mode is chosen "
+            "when the env is made (render_mode=...)"
+        )
+
+
 class OneRoomRendering:
     """Room 0 of ``self.sim`` as the PettingZoo and Gymnasium envs show it: its observation, ``render()`` and
     ``close()``."""
@@ -30,8 +39,10 @@ class OneRoomRendering:
         range readings."""
         return {key: value[0] for key, value in self.sim.observe().items()}
 
-    def render(self):
-        """``rgb_array``: the bird's-eye map (240x320x3 uint8); ``human``: MuJoCo's viewer (``None``)."""
+    def render(self, mode: str | None = None):
+        """``rgb_array``: the bird's-eye map (240x320x3 uint8); ``human``: MuJoCo's viewer (``None``). ``mode``, which
+        some libraries pass (RLlib's PettingZoo wrappers), may only repeat the env's ``render_mode``."""
+        check_render_mode(mode, self.render_mode)
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
             return None

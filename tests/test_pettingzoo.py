@@ -327,3 +327,35 @@ def test_supersuit_frame_skip_draws_from_np_random_seeded_by_reset():
     plain = activeperc_env.parallel_env()
     plain.reset(seed=0)
     assert plain.unwrapped.sim.goal_xy().tolist() == first[1]  # the room draws nothing from np_random
+
+
+@pytest.mark.parametrize("make", [activeperc_env.env, activeperc_env.parallel_env])
+def test_render_takes_the_mode_some_libraries_pass(make):
+    """RLlib's PettingZoo wrappers call ``render(render_mode)``: the env's own mode is accepted, another refused."""
+    env = make(render_mode="rgb_array")
+    env.reset(seed=0)
+    assert np.array_equal(env.render("rgb_array"), env.render())
+    with pytest.raises(ValueError, match="render\\('human'\\) asks for another mode than the env's render_mode='rgb_"):
+        env.render("human")
+
+
+@pytest.mark.parametrize("looker_reward, looker_share", [("shared", 0.0), ("own_turn", 1.0), ("none", 0.0)])
+def test_own_turn_gives_the_looker_its_reward_with_its_own_step(looker_reward, looker_share):
+    """Tianshou reads ``rewards`` after each step and credits the agent that stepped: with 'own_turn' the looker's
+    steps carry the shared reward (with 'shared' it came with the mover's step); ``last()`` totals stay the same."""
+    env = activeperc_env.env(num_obstacles=0, looker_reward=looker_reward)
+    env.reset(seed=3)
+    sim = env.unwrapped.sim
+    own_steps = {MOVER: 0.0, LOOKER: 0.0}  # what each agent's own steps returned, as Tianshou sees them
+    by_last = {MOVER: 0.0, LOOKER: 0.0}  # what last() gave each agent, as PettingZoo's loop sees them
+    for agent in env.agent_iter():
+        _, reward, term, trunc, _ = env.last()
+        by_last[agent] += reward
+        if term or trunc:
+            env.step(None)
+            continue
+        env.step(goal_seeking_move(sim) if agent == MOVER else 1)
+        own_steps[agent] += env.unwrapped.rewards[agent]
+    assert by_last[MOVER] > 0.5, "the scripted mover should reach the goal"
+    assert by_last[LOOKER] == (0.0 if looker_reward == "none" else by_last[MOVER])
+    assert own_steps == {MOVER: by_last[MOVER], LOOKER: looker_share * by_last[MOVER]}
