@@ -14,7 +14,7 @@ from typing import ClassVar
 from activeperc_env.names import OCCLUDER_BODIES
 from activeperc_env.rooms import DEFAULT, LEGACY_DEFAULT, ROOMS, Room
 
-LOOKER_REWARDS = ("shared", "none")
+LOOKER_REWARDS = ("shared", "own_turn", "none")
 LAYERS = ("depth", "segmentation")  # the optional image layers of the observation, each an EnvConfig flag
 MAX_RANGE_RAYS = 64
 MAX_CYCLES = 1_000_000  # an episode of more cycles (over 55 hours at 5 Hz) would, in practice, never end
@@ -112,7 +112,9 @@ class EnvConfig:
     """Add 'segmentation' to the observation: (height, width) int32, the id of the model's geom each pixel shows
     (-1 where none is seen)."""
     looker_reward: str = "shared"
-    """'shared': the looker receives the mover's reward; 'none': the looker's reward is always 0."""
+    """'shared': the looker receives the mover's reward; 'own_turn': the same, but given at the looker's own turn in
+    the AEC env (for libraries that credit each agent with the reward of its own step, as Tianshou does); 'none':
+    the looker's reward is always 0."""
     version: int = DEFAULT
     """The room (:mod:`activeperc_env.rooms`): 3, where the base slides and never turns, so only the camera sees to
     the side; 2 and 1, where the base turns; or 0, the paper-faithful room of the Figure 1 pilot."""

@@ -45,7 +45,7 @@ class MoveResult:
     reward: np.ndarray
     """The mover's reward ``r(s, u_m)``: ``1 - 0.2 t / T`` on success, else 0 (float64)."""
     looker_reward: np.ndarray
-    """The looker's reward for the same cycle: the mover's (``looker_reward='shared'``) or 0 (``'none'``)."""
+    """The looker's reward for the same cycle: the mover's (``looker_reward`` 'shared' or 'own_turn'), or 0 ('none')."""
     terminated: np.ndarray
     """The robot reached the goal."""
     truncated: np.ndarray
@@ -293,7 +293,7 @@ class Simulator:
         self.done[ids] = success | truncated
         self.success[ids] = success
         self.episode_return[ids] += reward
-        looker_reward = reward.copy() if self.config.looker_reward == "shared" else np.zeros_like(reward)
+        looker_reward = np.zeros_like(reward) if self.config.looker_reward == "none" else reward.copy()
         return MoveResult(
             reward=reward,
             looker_reward=looker_reward,
