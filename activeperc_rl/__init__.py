@@ -6,6 +6,7 @@ training recipe: ``TrainConfig()`` is the one that works in the default room), :
 and ``activeperc-eval``).
 """
 
+import importlib
 import importlib.util
 
 _missing = [name for name in ("torch", "tensordict", "torchrl", "yaml") if importlib.util.find_spec(name) is None]
@@ -16,8 +17,18 @@ if _missing:  # the environment alone was installed
         "pip install torch==2.13.0 -e '.[train]'; torch pinned: an unpinned torch pulls a CUDA build of several GB)"
     )
 
-from activeperc_rl.envs import ActivePerceptionEnv, make_env  # noqa: E402 (after the check above)
-from activeperc_rl.losses import MetaEvaluationLoss  # noqa: E402
-from activeperc_rl.recipe import TrainConfig  # noqa: E402
+# the public names load torch when first used, so that a command can set itself up before (activeperc_rl.commands)
+_PUBLIC = {
+    "ActivePerceptionEnv": "activeperc_rl.envs",
+    "MetaEvaluationLoss": "activeperc_rl.losses",
+    "TrainConfig": "activeperc_rl.recipe",
+    "make_env": "activeperc_rl.envs",
+}
+__all__ = list(_PUBLIC)
 
-__all__ = ["ActivePerceptionEnv", "MetaEvaluationLoss", "TrainConfig", "make_env"]
+
+def __getattr__(name: str):
+    """A public name, imported from its module on first use."""
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'activeperc_rl' has no attribute {name!r}")
+    return getattr(importlib.import_module(_PUBLIC[name]), name)

@@ -744,6 +744,42 @@ def test_a_run_under_nohup_in_the_background_goes_on_after_a_hangup_and_a_ctrl_c
     assert "checkpoint saved" in output and "SIGHUP" not in output and "Ctrl-C" not in output
 
 
+def catches(pid: int, number: int) -> bool:
+    """Whether process ``pid`` has a handler of signal ``number`` (Linux's /proc: SigCgt)."""
+    with open(f"/proc/{pid}/status") as status:
+        mask = next(line for line in status if line.startswith("SigCgt:")).split()[1]
+    return bool(int(mask, 16) >> (number - 1) & 1)
+
+
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_sigterm_while_the_command_starts_is_one_line(tmp_path, command):
+    """The console scripts catch SIGTERM before torch loads (their imports take a second or more): one line, exit
+    130, and nothing written; before, the process died of the signal with no word."""
+    script = (
+        f"import sys; from activeperc_rl.commands import {command}; sys.argv[1:] = ['{tmp_path / 'run'}']; "
+        f"sys.exit({command}())"
+    )
+    process = subprocess.Popen(
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+        preexec_fn=default_stop_signals,
+    )
+    deadline = time.monotonic() + 60
+    while not catches(process.pid, signal.SIGTERM) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.002)
+    with open(f"/proc/{process.pid}/maps") as maps:
+        torch_loaded = "libtorch" in maps.read()
+    process.send_signal(signal.SIGTERM)
+    output, errors = process.communicate(timeout=60)
+    assert not torch_loaded, "the handler came only once torch had loaded"
+    prog = {"train": "activeperc-train", "evaluate": "activeperc-eval"}[command]
+    assert process.returncode == 130 and errors.strip() == f"{prog}: interrupted", errors
+    assert output == "" and os.listdir(tmp_path) == []
+
+
 def test_the_random_baseline_plays_the_random_policy(tmp_path, capsys, monkeypatch):
     """The final evaluation scores the learned policy, the learned mover with the camera held forward (where a learned
     looker turns it), then the random one; ``activeperc-eval --random`` the latter."""
