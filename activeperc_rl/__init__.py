@@ -32,3 +32,8 @@ def __getattr__(name: str):
     if name not in _PUBLIC:
         raise AttributeError(f"module 'activeperc_rl' has no attribute {name!r}")
     return getattr(importlib.import_module(_PUBLIC[name]), name)
+
+
+def __dir__() -> list[str]:
+    """The module's names with the public ones not yet imported (for tab completion)."""
+    return sorted(set(globals()) | set(_PUBLIC))
