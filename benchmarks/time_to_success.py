@@ -141,8 +141,12 @@ def plot(rows: list[dict], methods: list[str], path: Path) -> None:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
     parser.add_argument("--seeds", type=harness.at_least(int, "--seeds", 0), nargs="+", default=[0])
-    parser.add_argument("--every", type=harness.at_least(int, "--every", 1), default=50_000, help="frames between two scores")
-    parser.add_argument("--episodes", type=harness.at_least(int, "--episodes", 1), default=100, help="held-out layouts a score plays")
+    parser.add_argument(
+        "--every", type=harness.at_least(int, "--every", 1), default=50_000, help="frames between two scores"
+    )
+    parser.add_argument(
+        "--episodes", type=harness.at_least(int, "--episodes", 1), default=100, help="held-out layouts a score plays"
+    )
     parser.add_argument("--reference", default=REFERENCE, help="the method beside the config's ('none': alone)")
     parser.add_argument("--runs", type=Path, default=Path("runs/time_to_success"), help="run directories")
     parser.add_argument("--csv", type=Path, default=Path("runs/time_to_success/time_to_success.csv"))

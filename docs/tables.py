@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -466,67 +467,122 @@ def time_to_success() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
-RECIPE_OPTIONS = {  # column: (CSV of time_to_success.py's meta rows, the training flags, the column it is paired with)
-    "constant (the default)": ("time_to_success.csv", "", None),
-    "linear": ("time_to_success_lr_linear.csv", "--lr-schedule linear", "constant (the default)"),
+RECIPE_OPTIONS = {  # column: (CSV of time_to_success.py, the method, the training flags)
+    "constant (the default)": ("time_to_success.csv", "meta", ""),
+    "linear": ("time_to_success_lr_linear.csv", "meta", "--lr-schedule linear"),
     "linear, 32 x 8": (
         "time_to_success_lr_linear_32x8.csv",
+        "meta",
         "--lr-schedule linear --num-envs 32 --rollout-length 8",
-        "linear",
     ),
 }
-"""The options of the default recipe measured by ``time_to_success.py``, each beside the recipe it changes."""
+"""The options of the default recipe measured by ``time_to_success.py``."""
+RECIPE_PAIRS = [("linear", "constant (the default)"), ("linear, 32 x 8", "linear")]
+"""Each option beside the recipe it changes."""
+
+SHORTER = "--frames 400000 --lr-schedule linear --num-envs 32 --rollout-length 8"
+RECIPE_BUDGET = {  # as RECIPE_OPTIONS: linear decay at 32 x 8 over a shorter run, without D1 sampled again, and the
+    # fixed camera with the same options
+    "600k frames": RECIPE_OPTIONS["linear, 32 x 8"],
+    "400k frames": ("time_to_success_400k.csv", "meta", SHORTER),
+    "400k, no D1 again": ("time_to_success_400k_no_resample.csv", "meta", f"--no-resample-d1 {SHORTER}"),
+    "400k, `fixed_forward`": ("time_to_success_400k.csv", "fixed_forward", f"--method fixed_forward {SHORTER}"),
+}
+"""Linear decay at 32 rooms x 8 cycles over 600,000 and 400,000 frames, the latter with one D1 an iteration, and the
+fixed camera over the latter."""
+BUDGET_PAIRS = [
+    ("400k frames", "600k frames"),
+    ("400k, no D1 again", "400k frames"),
+    ("400k frames", "400k, `fixed_forward`"),
+]
+"""The shorter run against the longer at the same frames, one D1 against two, and the looker's worth."""
+
+STEP = 100_000
+"""The frames between two scores of the recipe tables' runs (``--every``): a point is named by the step it passed."""
 
 
 def recipe_options() -> str:
-    """Held-out success of ``meta`` against training frames for each of :data:`RECIPE_OPTIONS`, mean ± 95 % interval
-    over seeds (with the mean minutes of training of the runs made one core each), the paired differences by seed,
-    and the frames and minutes at which each first reaches a threshold."""
+    """The options of :data:`RECIPE_OPTIONS` (see :func:`recipe_table`)."""
+    return recipe_table(RECIPE_OPTIONS, RECIPE_PAIRS)
+
+
+def recipe_budget() -> str:
+    """The runs of :data:`RECIPE_BUDGET` (see :func:`recipe_table`)."""
+    return recipe_table(RECIPE_BUDGET, BUDGET_PAIRS)
+
+
+def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str, str]]) -> str:
+    """Held-out success against training frames for each of ``options``, mean ± 95 % interval over seeds (with the
+    mean minutes of training of the runs made one core each), the paired differences by seed of ``pairs``, and the
+    frames and minutes at which each first reaches a threshold."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from time_to_success import THRESHOLDS, curve
 
     rows = {}
-    for label, (name, _, _) in RECIPE_OPTIONS.items():
-        rows[label] = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == "meta"]
-    one_core = [label for label, (_, flags, _) in RECIPE_OPTIONS.items() if flags]  # two runs at a time, one core each
-    points = {label: {f: rest for f, *rest in curve(rows[label], "meta")} for label in RECIPE_OPTIONS}
-    success = {label: {(r["seed"], int(r["frames"])): float(r["success_rate"]) for r in rows[label]} for label in rows}
-    pairs = [(label, other) for label, (_, _, other) in RECIPE_OPTIONS.items() if other]
+    for label, (name, method, _) in options.items():
+        rows[label] = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
+    one_core = [label for label, (_, _, flags) in options.items() if flags]  # two runs at a time, one core each
+    curves = {label: {f: rest for f, *rest in curve(rows[label], options[label][1])} for label in options}
+    points = {label: {step(f): (f, *p) for f, p in curves[label].items()} for label in options}
+    success = {
+        label: {(r["seed"], step(int(r["frames"]))): float(r["success_rate"]) for r in rows[label]} for label in rows
+    }
 
-    def cell(label: str, frames: int) -> str:
-        minutes, mean, half = points[label][frames]
-        return f"{mean:.2f} ± {half:.2f}" + (f" ({minutes:.1f} min)" if label in one_core else "")
+    def cell(label: str, at: int) -> str:
+        if at not in points[label]:
+            return ""
+        _, minutes, mean, half = points[label][at]
+        return spread_of(mean, half) + (f" ({minutes:.1f} min)" if label in one_core else "")
 
-    def paired(label: str, other: str, frames: int) -> str:
-        seeds = [seed for seed, at in success[label] if at == frames and (seed, at) in success[other]]
-        mean, half = mean_ci([success[label][s, frames] - success[other][s, frames] for s in seeds])
-        return f"{mean:+.2f} ± {half:.2f}"
+    def paired(label: str, other: str, at: int) -> str:
+        seeds = [seed for seed, where in success[label] if where == at and (seed, at) in success[other]]
+        if not seeds:
+            return ""
+        mean, half = mean_ci([success[label][s, at] - success[other][s, at] for s in seeds])
+        return spread_of(mean, half, "+.2f") + (f" ({count(len(seeds), 'seed')})" if len(seeds) < 5 else "")
 
     lines = []
-    for frames in sorted(set.intersection(*(set(p) for p in points.values()))):
-        cells = [cell(label, frames) for label in RECIPE_OPTIONS]
-        lines.append([f"{frames:,}", *cells, *(paired(label, other, frames) for label, other in pairs)])
+    for at in sorted(set().union(*(set(p) for p in points.values()))):
+        cells = [cell(label, at) for label in options]
+        lines.append([f"{at:,}", *cells, *(paired(label, other, at) for label, other in pairs)])
     for threshold in THRESHOLDS:
         firsts = []
-        for label in RECIPE_OPTIONS:
-            first = first_reached(points[label], threshold)
+        for label in options:
+            first = first_reached(curves[label], threshold)
             if first is None:
                 firsts.append("not reached")
             else:
                 firsts.append(f"{first[0]:,} frames" + (f", {first[1][0]:.1f} min" if label in one_core else ""))
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts, *([""] * len(pairs))])
-    header = ["frames", *RECIPE_OPTIONS, *(f"{label} − {other.split()[0]}, by seed" for label, other in pairs)]
+    seeds = {label: len({r["seed"] for r in rows[label]}) for label in options}
+    names = [label + (f" ({count(seeds[label], 'seed')})" if seeds[label] < 5 else "") for label in options]
+    header = ["frames (first past)", *names, *(f"{label} − {other}, by seed" for label, other in pairs)]
     commands = []
     for label in one_core:
-        name, flags, _ = RECIPE_OPTIONS[label]
-        seeds = " ".join(sorted({r["seed"] for r in rows[label]}))
+        name, _, flags = options[label]
+        seed_list = " ".join(sorted({r["seed"] for r in rows[label]}))
         command = (
-            f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --reference none"
+            f"python benchmarks/time_to_success.py --seeds {seed_list} --every {STEP} --reference none"
             f" --csv {BENCH}/cpu2/{name} -- {flags}"
         )
         commands += [{"command": command} | r for r in rows[label]]
     footer = runs_footer(commands).removesuffix(".\n")
     return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`).\n"
+
+
+def spread_of(mean: float, half: float, form: str = ".2f") -> str:
+    """``mean ± half`` (the mean alone where one value gave no interval)."""
+    return f"{mean:{form}}" + ("" if math.isnan(half) else f" ± {half:.2f}")
+
+
+def count(n: int, noun: str) -> str:
+    """``1 seed``, ``2 seeds``."""
+    return f"{n} {noun}" + ("s" if n != 1 else "")
+
+
+def step(frames: int) -> int:
+    """The step of :data:`STEP` frames that a score at ``frames`` (the first iteration past it) stands for."""
+    return frames // STEP * STEP
 
 
 def speed_of_variants(report_name: str, variants: dict[str, str]) -> str:
@@ -641,6 +697,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
+    "recipe-budget": ("performance.md", recipe_budget),
     "default-speed": (
         "performance.md",
         lambda: speed_of_variants(
