@@ -50,7 +50,7 @@ def markdown(header: list[str], rows: list[list[str]]) -> str:
 
 def spread(values) -> str:
     """``mean ± half-width`` of the 95 % interval over seeds, two digits."""
-    return "{:.2f} ± {:.2f}".format(*mean_ci([float(v) for v in values]))
+    return spread_of(*mean_ci([float(v) for v in values]))
 
 
 def seeds_of(text: str) -> list[str]:
@@ -447,12 +447,11 @@ def time_to_success() -> str:
         if point is None:
             return ""
         minutes, success, half = point
-        spread = "" if half != half else f" ± {half:.2f}"  # NaN: one seed
-        return f"{success:.2f}{spread} ({minutes:.1f} min)"
+        return f"{spread_of(success, half)} ({minutes:.1f} min)"
 
-    steps = sorted({round(frames, -5) for points in curves.values() for frames in points})
-    nearest = {m: {round(f, -5): p for f, p in points.items()} for m, points in curves.items()}
-    lines = [[f"{step:,}"] + [cell(nearest[m].get(step)) for m in methods] for step in steps]
+    steps = sorted({step(frames) for points in curves.values() for frames in points})
+    nearest = {m: {step(f): p for f, p in points.items()} for m, points in curves.items()}
+    lines = [[f"{at:,}"] + [cell(nearest[m].get(at)) for m in methods] for at in steps]
     for threshold in THRESHOLDS:
         firsts = []
         for method in methods:
@@ -523,7 +522,7 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
         rows[label] = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
     one_core = [label for label, (_, _, flags) in options.items() if flags]  # two runs at a time, one core each
     curves = {label: {f: rest for f, *rest in curve(rows[label], options[label][1])} for label in options}
-    points = {label: {step(f): (f, *p) for f, p in curves[label].items()} for label in options}
+    points = {label: {step(f): p for f, p in curves[label].items()} for label in options}
     success = {
         label: {(r["seed"], step(int(r["frames"]))): float(r["success_rate"]) for r in rows[label]} for label in rows
     }
@@ -531,7 +530,7 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     def cell(label: str, at: int) -> str:
         if at not in points[label]:
             return ""
-        _, minutes, mean, half = points[label][at]
+        minutes, mean, half = points[label][at]
         return spread_of(mean, half) + (f" ({minutes:.1f} min)" if label in one_core else "")
 
     def paired(label: str, other: str, at: int) -> str:
