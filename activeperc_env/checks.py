@@ -31,7 +31,6 @@ def check_actions(
     """``actions`` as ``count`` int64 indices; ``ValueError`` naming ``agent`` and its action space ``Discrete(n)``
     (with the ``meanings`` of its actions) unless they are one int of it per room. ``scalar``: True takes one int
     only (one agent's step), False an array of ``count`` only (a vector env's), None either when ``count`` is 1."""
-    space = " ".join(filter(None, [f"Discrete({n})", str(meanings) if meanings else ""]))
     array = np.asarray(actions)
     if array.shape == () and count == 1 and scalar is not False:
         array = array.reshape(1)
@@ -39,9 +38,18 @@ def check_actions(
         array = None  # one agent's step takes an int, not an array of one
     if array is None or array.shape != (count,) or not (np.issubdtype(array.dtype, np.integer) or array.size == 0):
         expected = "an int" if count == 1 and scalar is not False else f"{count} ints"
-        raise ValueError(f"{agent} action(s) {actions!r} invalid: expected {expected} in its action space {space}")
+        raise ValueError(
+            f"{agent} action(s) {actions!r} invalid: expected {expected} in its action space {_space(n, meanings)}"
+        )
     outside = np.flatnonzero((array < 0) | (array >= n))
     if outside.size:
         room = f" of room {outside[0]}" if count > 1 else ""
-        raise ValueError(f"{agent} action {array[outside[0]].item()!r}{room} is outside its action space {space}")
+        raise ValueError(
+            f"{agent} action {array[outside[0]].item()!r}{room} is outside its action space {_space(n, meanings)}"
+        )
     return array.astype(np.int64)
+
+
+def _space(n: int, meanings: tuple[str, ...]) -> str:
+    """An action space as the errors name it: ``Discrete(3) ('left', 'hold', 'right')``."""
+    return " ".join(filter(None, [f"Discrete({n})", str(meanings) if meanings else ""]))
