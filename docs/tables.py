@@ -496,6 +496,15 @@ BUDGET_PAIRS = [
 ]
 """The shorter run against the longer at the same frames, one D1 against two, and the looker's worth."""
 
+MANY = "--num-envs 256 --rollout-length 8 --frames 1000000 --lr-schedule linear"
+MANY_ROOMS = {  # as RECIPE_OPTIONS: benchmarks/gpu_learning.sh's first setting on the CPU, at two learning rates
+    "32 x 8, lr 7e-4": RECIPE_OPTIONS["linear, 32 x 8"],
+    "256 x 8, lr 1.4e-3": ("time_to_success_256x8_lr0.0014.csv", "meta", f"{MANY} --lr 0.0014"),
+    "256 x 8, lr 2.8e-3": ("time_to_success_256x8_lr0.0028.csv", "meta", f"{MANY} --lr 0.0028"),
+}
+"""The recipe for many rooms (a GPU's), tried first on the CPU: 256 rooms x 8 cycles a rollout, 2,048 frames an
+update, beside 32 x 8 (256 frames an update)."""
+
 STEP = 100_000
 """The frames between two scores of the recipe tables' runs (``--every``): a point is named by the step it passed."""
 
@@ -508,6 +517,11 @@ def recipe_options() -> str:
 def recipe_budget() -> str:
     """The runs of :data:`RECIPE_BUDGET` (see :func:`recipe_table`)."""
     return recipe_table(RECIPE_BUDGET, BUDGET_PAIRS)
+
+
+def many_rooms() -> str:
+    """The runs of :data:`MANY_ROOMS` (see :func:`recipe_table`)."""
+    return recipe_table(MANY_ROOMS, [])
 
 
 def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str, str]]) -> str:
@@ -560,8 +574,9 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     for label in one_core:
         name, _, flags = options[label]
         seed_list = " ".join(sorted({r["seed"] for r in rows[label]}))
+        every = step(min(int(r["frames"]) for r in rows[label]))  # the first score's step
         command = (
-            f"python benchmarks/time_to_success.py --seeds {seed_list} --every {STEP} --reference none"
+            f"python benchmarks/time_to_success.py --seeds {seed_list} --every {every} --reference none"
             f" --csv {BENCH}/cpu2/{name} -- {flags}"
         )
         commands += [{"command": command} | r for r in rows[label]]
@@ -697,6 +712,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
     "recipe-budget": ("performance.md", recipe_budget),
+    "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
         "performance.md",
         lambda: speed_of_variants(
