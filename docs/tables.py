@@ -325,12 +325,21 @@ GOAL_COLUMNS = {  # (room, MiniWorld's llvmpipe setting): header
 
 
 def runs_footer(rows: list[dict]) -> str:
-    """The commands, machines and dates of benchmark rows, each once, with the output they printed."""
-    seen = dict.fromkeys(
-        f"`{r['command']}` ({r['machine']}, {r['date']}" + (f"; `{r['output']}`" if r.get("output") else "") + ")"
-        for r in rows
-    )
-    return "\n" + "Commands: " + "; ".join(seen) + ".\n"
+    """The commands of benchmark rows, each once, with the machines and dates it ran on and the outputs it printed."""
+    runs: dict[str, dict[tuple[str, str], dict[str, None]]] = {}
+    for r in rows:
+        outputs = runs.setdefault(r["command"], {}).setdefault((r["machine"], r["date"]), {})
+        if r.get("output"):
+            outputs[f"`{r['output']}`"] = None
+    commands = [
+        f"`{command}` "
+        + " and ".join(
+            f"({machine}, {date}" + "".join(f"; {o}" for o in outputs) + ")"
+            for (machine, date), outputs in where.items()
+        )
+        for command, where in runs.items()
+    ]
+    return "\n" + "Commands: " + "; ".join(commands) + ".\n"
 
 
 def times(value: str) -> str:
@@ -570,8 +579,13 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     seeds = {label: len({r["seed"] for r in rows[label]}) for label in options}
     names = [label + (f" ({count(seeds[label], 'seed')})" if seeds[label] < 5 else "") for label in options]
     header = ["frames (first past)", *names, *(f"{label} − {other}, by seed" for label, other in pairs)]
-    commands = []
+    commands, shown_above = (
+        [],
+        [label for label in one_core if options is not RECIPE_OPTIONS and options[label] in RECIPE_OPTIONS.values()],
+    )
     for label in one_core:
+        if label in shown_above:
+            continue
         name, _, flags = options[label]
         seed_list = " ".join(sorted({r["seed"] for r in rows[label]}))
         every = step(min(int(r["frames"]) for r in rows[label]))  # the first score's step
@@ -581,7 +595,8 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
         )
         commands += [{"command": command} | r for r in rows[label]]
     footer = runs_footer(commands).removesuffix(".\n")
-    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`).\n"
+    above = "".join(f"; {label}: the [recipe options](#time-to-a-looker-that-pays)' runs" for label in shown_above)
+    return markdown(header, lines) + footer + above + "; two runs at a time, each on one core (`taskset`).\n"
 
 
 def spread_of(mean: float, half: float, form: str = ".2f") -> str:
