@@ -31,6 +31,13 @@ def check_actions(
     """``actions`` as ``count`` int64 indices; ``ValueError`` naming ``agent`` and its action space ``Discrete(n)``
     (with the ``meanings`` of its actions) unless they are one int of it per room. ``scalar``: True takes one int
     only (one agent's step), False an array of ``count`` only (a vector env's), None either when ``count`` is 1."""
+    if (
+        count == 1
+        and scalar is not False
+        and (type(actions) is int or isinstance(actions, np.integer))
+        and 0 <= actions < n
+    ):
+        return np.array([actions], dtype=np.int64)  # one agent's step, the common case, without numpy's checks
     array = np.asarray(actions)
     if array.shape == () and count == 1 and scalar is not False:
         array = array.reshape(1)

@@ -272,27 +272,28 @@ class Simulator:
         ids = self._as_ids(ids, changed=True)
         actions = check_actions(actions, len(ids), MOVER_ACTIONS, "mover", self.config.room.mover_actions)
         self.require_started("move()", ids)
-        if self.done[ids].any():
+        rows = self._rows(ids)
+        if self.done[rows].any():
             raise RuntimeError(f"move() on finished episodes {ids[self.done[ids]].tolist()}: reset them first")
         ctrl = self._ctrl[ids]
-        self._base.drive(ctrl, self._qpos[ids], actions)
-        self._ctrl[ids] = ctrl
-        self._batch.step(ids, nstep=self.substeps)
-        self._tiles[ids] = -1
-        self._ranged[ids] = False
+        self._base.drive(ctrl, self._qpos[rows], actions)
+        self._ctrl[rows] = ctrl
+        self._batch.step(None if isinstance(rows, slice) else ids, nstep=self.substeps)
+        self._tiles[rows] = -1
+        self._ranged[rows] = False
         # a stiff servo holds the pan joint while the base moves; its residual error (about
         # 1e-5 rad) would accumulate over an episode, so the joint returns to its command
-        self._qpos[ids, self._ids.pan] = self._ctrl[ids, self._ids.pan_ctrl]
-        self._qvel[ids, self._ids.pan_dof] = 0.0
-        self.cycle[ids] += 1
-        robot = self._base.xy(self._qpos[ids])
-        goal = self._mocap_pos[ids][:, self._ids.goal, :2]
-        success = np.linalg.norm(robot - goal, axis=1) < SUCCESS_DISTANCE
-        reward = self._reward(success, self.cycle[ids])
-        truncated = ~success & (self.cycle[ids] >= self.config.max_cycles)
-        self.done[ids] = success | truncated
-        self.success[ids] = success
-        self.episode_return[ids] += reward
+        self._qpos[rows, self._ids.pan] = self._ctrl[rows, self._ids.pan_ctrl]
+        self._qvel[rows, self._ids.pan_dof] = 0.0
+        self.cycle[rows] += 1
+        cycle = self.cycle[ids]
+        to_goal = self._base.xy(self._qpos[rows]) - self._mocap_pos[rows, self._ids.goal, :2]
+        success = np.sqrt(np.add.reduce(to_goal * to_goal, axis=1)) < SUCCESS_DISTANCE  # np.linalg.norm's sum
+        reward = self._reward(success, cycle)
+        truncated = ~success & (cycle >= self.config.max_cycles)
+        self.done[rows] = success | truncated
+        self.success[rows] = success
+        self.episode_return[rows] += reward
         looker_reward = np.zeros_like(reward) if self.config.looker_reward == "none" else reward.copy()
         return MoveResult(
             reward=reward,
@@ -325,12 +326,14 @@ class Simulator:
         ids = self._as_ids(ids, changed=True)
         actions = check_actions(actions, len(ids), len(LOOKER_ACTIONS), "looker", LOOKER_ACTIONS)
         self.require_started("look()", ids)
-        before = self._qpos[ids, self._ids.pan]
-        pan = np.clip(before + self._pan_deltas[actions], -self._pan_limit, self._pan_limit).astype(np.float32)
+        rows = self._rows(ids)
+        before = self._qpos[rows, self._ids.pan]
+        pan = np.minimum(np.maximum(before + self._pan_deltas[actions], -self._pan_limit), self._pan_limit)  # a clip
+        pan = pan.astype(np.float32)
         self._tiles[ids[pan != before]] = -1  # a hold, or a pan against the limit, leaves the view as it was
-        self._qpos[ids, self._ids.pan] = pan
-        self._qvel[ids, self._ids.pan_dof] = 0.0
-        self._ctrl[ids, self._ids.pan_ctrl] = pan
+        self._qpos[rows, self._ids.pan] = pan
+        self._qvel[rows, self._ids.pan_dof] = 0.0
+        self._ctrl[rows, self._ids.pan_ctrl] = pan
 
     def look_views(self, ids=None) -> tuple[np.ndarray, np.ndarray]:
         """What each look would show the rooms ``ids`` (all when ``None``), the camera left where it is: the views
@@ -362,7 +365,9 @@ class Simulator:
         ids = self._as_ids(ids)
         self.require_started("render()", ids)
         per_pass = self.renderer.views_per_pass
-        tiles = np.arange(len(ids)) % per_pass  # where each view is drawn in the offscreen buffer
+        tiles = np.arange(len(ids))  # where each view is drawn in the offscreen buffer
+        if len(ids) > per_pass:
+            tiles %= per_pass
         if self._views is None:
             cfg = self.config
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
@@ -543,6 +548,11 @@ class Simulator:
         if changed and (np.diff(arr) <= 0).any():
             raise ValueError(f"room ids {arr.tolist()} are invalid: expected distinct rooms in increasing order")
         return arr.astype(np.int64)
+
+    def _rows(self, ids: np.ndarray) -> np.ndarray | slice:
+        """The rows of the per-room arrays of the distinct, increasing rooms ``ids``: all of them as a slice (which
+        indexes without copies) where they are every room."""
+        return slice(None) if len(ids) == self.num_envs else ids
 
     def _as_index(self, index) -> int:
         """``index`` as the int of one room; ``ValueError`` unless it is one (negative indices are not taken)."""

@@ -159,7 +159,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
         action = check_action(agent, action, self.action_spaces[agent])
         self._cumulative_rewards[agent] = 0.0
         if agent == MOVER:
-            result = self.sim.move(np.array([action]))
+            result = self.sim.move(action)
             looker_reward = float(result.looker_reward[0])
             own_turn = self.config.looker_reward == "own_turn"
             self.rewards = {MOVER: float(result.reward[0]), LOOKER: 0.0 if own_turn else looker_reward}
@@ -168,7 +168,7 @@ class raw_env(_Adapter, AECEnv):  # PettingZoo's naming convention
             self._obs[LOOKER] = self._observe()
             self.agent_selection = LOOKER
         else:
-            self.sim.look(np.array([action]))
+            self.sim.look(action)
             self.rewards = {MOVER: 0.0, LOOKER: self._looker_due}
             self._obs[MOVER] = self._observe()
             terminated, truncated, outcome = self._pending
@@ -240,7 +240,21 @@ def _copy(obs: dict) -> dict:
 
 
 class _OrderEnforcing(wrappers.OrderEnforcingWrapper):
-    """PettingZoo's order-enforcing wrapper whose ``render`` passes on the mode some libraries give (RLlib's)."""
+    """PettingZoo's order-enforcing wrapper whose ``render`` passes on the mode some libraries give (RLlib's), and
+    whose ``last`` and ``step`` after a reset go straight to the env (PettingZoo's reach every attribute through two
+    ``__getattr__``: a tenth of a cycle)."""
+
+    def last(self, observe: bool = True):
+        """The env's ``last()``; before a reset, PettingZoo's error."""
+        return self.env.last(observe) if self._has_reset else super().last(observe)
+
+    def step(self, action) -> None:
+        """The env's ``step()``; before a reset or after the episode, PettingZoo's error or warning."""
+        if self._has_reset and self.env.agents:
+            self._has_updated = True
+            self.env.step(action)
+        else:
+            super().step(action)
 
     def render(self, mode: str | None = None):
         """The env's ``render`` (``mode`` may only repeat its ``render_mode``)."""

@@ -64,6 +64,14 @@ class TiledRenderer:
         self._eye = _fixed_camera(model, names.EYE_CAMERA)
         self._map = _fixed_camera(model, names.MAP_CAMERA)
         self._pixels = np.empty(buf_h * buf_w * 3, dtype=np.uint8)  # read-back buffer
+        # where each tile lies in the buffer (tiles fill rows from the bottom left), and the areas read back by the
+        # last tile they hold
+        self._tiles = [
+            mujoco.MjrRect(col * width, row * height, width, height)
+            for row in range(self.rows)
+            for col in range(self.cols)
+        ]
+        self._areas: dict[int, mujoco.MjrRect] = {}
 
     @property
     def views_per_pass(self) -> int:
@@ -86,19 +94,28 @@ class TiledRenderer:
         """
         n = len(qpos)
         out = np.empty((n, self.height, self.width, 3), dtype=np.uint8)
-        per_pass = self.views_per_pass
-        if tiles is None:
-            with self._current():
-                for first in range(0, n, per_pass):
-                    views = np.arange(first, min(n, first + per_pass))
-                    self._draw(qpos, mocap_pos, views, views - first, out)
-        elif n:
+        if tiles is not None and n:
             tiles = np.asarray(tiles, dtype=np.int64)
-            if tiles.shape != (n,) or tiles.min() < 0 or tiles.max() >= per_pass or len(np.unique(tiles)) != n:
-                raise ValueError(f"tiles {tiles.tolist()} invalid: expected {n} distinct tiles in 0 .. {per_pass - 1}")
-            with self._current():
-                self._draw(qpos, mocap_pos, np.arange(n), tiles, out)
+            if tiles.shape != (n,) or tiles.min() < 0 or tiles.max() >= self.views_per_pass or len(set(tiles)) != n:
+                raise ValueError(
+                    f"tiles {tiles.tolist()} invalid: expected {n} distinct tiles in 0 .. {self.views_per_pass - 1}"
+                )
+        with self._current():
+            for views, drawn in self._passes(n, tiles):
+                self._draw_tiles(qpos[views], mocap_pos[views], drawn)
+                out[views] = self._read_rgb(drawn)
         return out
+
+    def _passes(self, n: int, tiles: np.ndarray | None) -> Iterator[tuple[slice | np.ndarray, list[int]]]:
+        """The passes that draw ``n`` views: which views (an index of them) each draws, in which tiles. In the given
+        ``tiles``, all in one pass; by default view ``k`` in tile ``k % views_per_pass``."""
+        if tiles is not None:
+            if n:
+                yield slice(None), tiles.tolist()
+            return
+        for first in range(0, n, self.views_per_pass):
+            count = min(self.views_per_pass, n - first)
+            yield slice(first, first + count), list(range(count))
 
     @contextmanager
     def _current(self) -> Iterator[None]:
@@ -112,17 +129,12 @@ class TiledRenderer:
         finally:
             self._gl.restore(previous)
 
-    def _draw(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, out: np.ndarray) -> None:
-        """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer, read back once, fill ``out[views]``."""
-        self._draw_tiles(qpos, mocap_pos, views, tiles)
-        out[views] = self._read_rgb(tiles)
-
-    def _draw_tiles(self, qpos, mocap_pos, views: np.ndarray, tiles: np.ndarray, after_each=None) -> list:
-        """Draw ``views`` (indices into ``qpos``) in ``tiles`` of the buffer; return what ``after_each()`` gave after
-        each view (nothing without it)."""
+    def _draw_tiles(self, qpos, mocap_pos, tiles: list[int], after_each=None) -> list:
+        """Draw the views of the states given, view ``k`` in tile ``tiles[k]`` of the buffer; return what
+        ``after_each()`` gave after each view (nothing without it)."""
         kept = []
-        for view, tile in zip(views, tiles, strict=True):
-            self._pose(qpos[view], mocap_pos[view])
+        for q, mocap, tile in zip(qpos, mocap_pos, tiles, strict=True):
+            self._pose(q, mocap)
             mujoco.mjv_updateScene(
                 self._model,
                 self._data,
@@ -132,34 +144,35 @@ class TiledRenderer:
                 mujoco.mjtCatBit.mjCAT_ALL,
                 self._scene,
             )
-            row, col = divmod(int(tile), self.cols)
-            rect = mujoco.MjrRect(col * self.width, row * self.height, self.width, self.height)
-            mujoco.mjr_render(rect, self._scene, self._ctx)
+            mujoco.mjr_render(self._tiles[tile], self._scene, self._ctx)
             if after_each is not None:
                 kept.append(after_each())
         return kept
 
-    def _read_rgb(self, tiles: np.ndarray) -> np.ndarray:
+    def _read_rgb(self, tiles: list[int]) -> np.ndarray:
         """The colours of ``tiles``, read back at once: (len(tiles), height, width, 3) uint8."""
         area = self._area(tiles)
         pixels = self._pixels[: area.height * area.width * 3].reshape(area.height, area.width, 3)
         mujoco.mjr_readPixels(pixels, None, area, self._ctx)
-        return self._untile(pixels, area)[tiles]
+        return self._of_tiles(pixels, area, tiles)
 
-    def _area(self, tiles: np.ndarray) -> mujoco.MjrRect:
+    def _area(self, tiles: list[int]) -> mujoco.MjrRect:
         """The part of the buffer that holds ``tiles``: whole rows of tiles from the bottom left."""
-        top = int(tiles.max())
-        used_rows = top // self.cols + 1
-        used_cols = self.cols if used_rows > 1 else top + 1
-        return mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
+        top = max(tiles)
+        if top not in self._areas:
+            used_rows = top // self.cols + 1
+            used_cols = self.cols if used_rows > 1 else top + 1
+            self._areas[top] = mujoco.MjrRect(0, 0, used_cols * self.width, used_rows * self.height)
+        return self._areas[top]
 
-    def _untile(self, pixels: np.ndarray, area: mujoco.MjrRect) -> np.ndarray:
-        """The views in ``pixels`` (an ``area`` read back, (height, width, ...)): (tiles, height, width, ...), top
-        row first."""
+    def _of_tiles(self, pixels: np.ndarray, area: mujoco.MjrRect, tiles: list[int]) -> np.ndarray:
+        """The views of ``tiles`` in ``pixels`` (an ``area`` read back, (height, width, ...)): (len(tiles), height,
+        width, ...), top row first."""
         # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom
         rows, cols, rest = area.height // self.height, area.width // self.width, pixels.shape[2:]
         grid = pixels.reshape(rows, self.height, cols, self.width, *rest)[:, ::-1]
-        return grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)
+        views = grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)
+        return views[: len(tiles)] if tiles == list(range(len(tiles))) else views[tiles]
 
     def render_layers(self, qpos: np.ndarray, mocap_pos: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         """The layers ``names`` (``"depth"``: :meth:`render_depth`, ``"segmentation"``: :meth:`render_segmentation`)
@@ -191,22 +204,20 @@ class TiledRenderer:
         n = len(qpos)
         out = np.empty((n, self.height, self.width), dtype=np.int32 if segmentation else np.float32)
         with self._current():
-            for first in range(0, n, self.views_per_pass):
-                views = np.arange(first, min(n, first + self.views_per_pass))
-                tiles = views - first
+            for views, tiles in self._passes(n, None):
                 if segmentation:
                     # each view's geom ids by the colour code its scene drew them in
-                    geoms = self._draw_tiles(qpos, mocap_pos, views, tiles, self._geoms_by_code)
+                    geoms = self._draw_tiles(qpos[views], mocap_pos[views], tiles, self._geoms_by_code)
                     rgb = self._read_rgb(tiles).astype(np.int64)
                     codes = rgb[..., 0] | rgb[..., 1] << 8 | rgb[..., 2] << 16  # the scene's geom index + 1
                     codes = np.minimum(codes, self._scene.maxgeom + 1)
                     out[views] = np.stack([table[code] for table, code in zip(geoms, codes, strict=True)])
                 else:
-                    self._draw_tiles(qpos, mocap_pos, views, tiles)
+                    self._draw_tiles(qpos[views], mocap_pos[views], tiles)
                     area = self._area(tiles)
                     depth = np.empty((area.height, area.width), dtype=np.float32)
                     mujoco.mjr_readPixels(None, depth, area, self._ctx)
-                    out[views] = self._untile(depth, area)[tiles]
+                    out[views] = self._of_tiles(depth, area, tiles)
         return out
 
     def _geoms_by_code(self) -> np.ndarray:

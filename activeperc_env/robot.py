@@ -84,7 +84,8 @@ class PlanarBase:
         'forward' drives along the heading the move starts from (a move turns or drives, never both)."""
         speed = np.where(actions == FORWARD, self._speed, 0.0)
         yaw = qpos[:, self.yaw]
-        ctrl[:, self.drives] = np.stack([speed * np.cos(yaw), speed * np.sin(yaw), self._yaw_rate[actions]], axis=1)
+        x, y, turn = self.drives
+        ctrl[:, x], ctrl[:, y], ctrl[:, turn] = speed * np.cos(yaw), speed * np.sin(yaw), self._yaw_rate[actions]
 
     def xy(self, qpos: np.ndarray) -> np.ndarray:
         """(n, 2) positions of the bases of the ``qpos`` rows."""
@@ -105,6 +106,5 @@ class HolonomicBase(PlanarBase):
         """Write the controls (rows of ``ctrl``) of the moves ``actions``: each drives at the forward speed along the
         heading turned by the move's angle (+90 degrees left, -90 right, 0 forward), the yaw held still."""
         direction = qpos[:, self.yaw] + _SLIDE_ANGLES[actions]
-        ctrl[:, self.drives] = np.stack(
-            [self._speed * np.cos(direction), self._speed * np.sin(direction), np.zeros(len(actions))], axis=1
-        )
+        x, y, turn = self.drives
+        ctrl[:, x], ctrl[:, y], ctrl[:, turn] = self._speed * np.cos(direction), self._speed * np.sin(direction), 0.0

@@ -44,12 +44,14 @@ def cast(
         to_x = np.where(dx == 0, np.inf, (np.copysign(names.ROOM_HALF_X, dx) - x) * inv_x)
         to_y = np.where(dy == 0, np.inf, (np.copysign(names.ROOM_HALF_Y, dy) - y) * inv_y)
         distance = np.fmin(np.fmin(to_x, to_y), range_max)
+        # the slab test of every ray against every occluder's square at once: (n, k, m) entry and exit distances
         half = names.OCCLUDER_HALF[0]
-        for box in range(occluders.shape[1]):  # slab test of every ray against each occluder's square in turn
-            low = occluders[:, box] - half - xy  # (n, 2): the square's near corner, from the base
-            x1, x2 = low[:, :1] * inv_x, (low[:, :1] + 2 * half) * inv_x
-            y1, y2 = low[:, 1:] * inv_y, (low[:, 1:] + 2 * half) * inv_y
-            enter = np.fmax(np.fmax(np.fmin(x1, x2), np.fmin(y1, y2)), 0.0)
-            leave = np.fmin(np.fmax(x1, x2), np.fmax(y1, y2))
-            distance = np.fmin(distance, np.where(leave >= enter, enter, np.inf))
+        low = (occluders - half - xy[:, None])[..., None]  # (n, k, 2, 1): each square's near corner, from the base
+        along_x, along_y = inv_x[:, None], inv_y[:, None]
+        x1, x2 = low[:, :, 0] * along_x, (low[:, :, 0] + 2 * half) * along_x
+        y1, y2 = low[:, :, 1] * along_y, (low[:, :, 1] + 2 * half) * along_y
+        enter = np.fmax(np.fmax(np.fmin(x1, x2), np.fmin(y1, y2)), 0.0)
+        leave = np.fmin(np.fmax(x1, x2), np.fmax(y1, y2))
+        hits = np.where(leave >= enter, enter, np.inf)
+        distance = np.fmin(distance, np.fmin.reduce(hits, axis=1, initial=np.inf))
     return np.clip(distance, 0.0, range_max).astype(np.float32)

@@ -5,7 +5,7 @@ The PettingZoo AEC env (and where its cycle's time goes), the batched core ``Sim
 Run it from the repository root (MiniWorld comes with the ``bench`` extra)::
 
     python benchmarks/env_speed.py              # 5 s per measurement, 3 rounds (about 3 minutes)
-    python benchmarks/env_speed.py --versions 0 1 --seconds 3
+    python benchmarks/env_speed.py --versions 1 3 --seconds 3
     python benchmarks/env_speed.py --seconds 2 --rounds 1 --json
 """
 
@@ -17,6 +17,8 @@ import statistics
 
 import harness
 import peer
+
+from activeperc_env.rooms import DEFAULT, ROOMS
 
 CORE_SIZES = (1, 16, 64)
 GYM_VEC_SIZE = 16  # rooms of the Gymnasium vector envs
@@ -169,7 +171,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     harness.add_timing_flags(parser, seconds=5.0, warmup=1.0, per="figure")
     parser.add_argument(
-        "--versions", type=int, nargs="+", choices=(0, 1), default=[1], help="room versions, each in every round (1)"
+        "--versions",
+        type=int,
+        nargs="+",
+        choices=sorted(ROOMS),
+        default=[DEFAULT],
+        help=f"room versions, each in every round (the default room, {DEFAULT})",
     )
     parser.add_argument("--json", action="store_true", help="also print one JSON object with every figure")
     return parser.parse_args(argv)
