@@ -147,13 +147,17 @@ def test_aec_breakdown_times_every_part_and_leaves_the_simulator_class_alone(har
     assert 0 < result["rest"] < result["total"]
 
 
-def test_env_speed_reports_every_figure_without_the_peer(capsys):
+def test_env_speed_reports_every_figure_of_the_default_room_without_the_peer(capsys):
+    from activeperc_env.rooms import DEFAULT
+
     report = load_script("env_speed").main(["--seconds", "0.05", "--warmup", "0", "--rounds", "1", "--no-peer"])
-    assert set(report["rounds"][0]) == {f"{key}_v1" for key in load_script("env_speed").FIGURES}
+    assert set(report["rounds"][0]) == {f"{key}_v{DEFAULT}" for key in load_script("env_speed").FIGURES}
     assert all(rate > 0 for rate in report["rounds"][0].values())
     assert report["miniworld_error"] == "skipped (--no-peer)" and report["goals_met"] == {}
     out = capsys.readouterr().out
-    assert "where a v1 AEC cycle goes" in out and "ratios and goals: unknown, MiniWorld was not measured" in out
+    assert (
+        f"where a v{DEFAULT} AEC cycle goes" in out and "ratios and goals: unknown, MiniWorld was not measured" in out
+    )
 
 
 def test_env_speed_counts_rooms_and_cycles(monkeypatch):
