@@ -365,9 +365,7 @@ class Simulator:
         ids = self._as_ids(ids)
         self.require_started("render()", ids)
         per_pass = self.renderer.views_per_pass
-        tiles = np.arange(len(ids))  # where each view is drawn in the offscreen buffer
-        if len(ids) > per_pass:
-            tiles %= per_pass
+        tiles = np.arange(len(ids)) % per_pass  # where each view is drawn in the offscreen buffer
         if self._views is None:
             cfg = self.config
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)

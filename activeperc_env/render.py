@@ -66,7 +66,7 @@ class TiledRenderer:
         self._pixels = np.empty(buf_h * buf_w * 3, dtype=np.uint8)  # read-back buffer
         # where each tile lies in the buffer (tiles fill rows from the bottom left), and the areas read back by the
         # last tile they hold
-        self._tiles = [
+        self._tile_rects = [
             mujoco.MjrRect(col * width, row * height, width, height)
             for row in range(self.rows)
             for col in range(self.cols)
@@ -144,7 +144,7 @@ class TiledRenderer:
                 mujoco.mjtCatBit.mjCAT_ALL,
                 self._scene,
             )
-            mujoco.mjr_render(self._tiles[tile], self._scene, self._ctx)
+            mujoco.mjr_render(self._tile_rects[tile], self._scene, self._ctx)
             if after_each is not None:
                 kept.append(after_each())
         return kept
@@ -171,8 +171,7 @@ class TiledRenderer:
         # GL rows run bottom-up: tile (row, col) starts at pixel row row * height from the bottom
         rows, cols, rest = area.height // self.height, area.width // self.width, pixels.shape[2:]
         grid = pixels.reshape(rows, self.height, cols, self.width, *rest)[:, ::-1]
-        views = grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)
-        return views[: len(tiles)] if tiles == list(range(len(tiles))) else views[tiles]
+        return grid.swapaxes(1, 2).reshape(-1, self.height, self.width, *rest)[tiles]
 
     def render_layers(self, qpos: np.ndarray, mocap_pos: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         """The layers ``names`` (``"depth"``: :meth:`render_depth`, ``"segmentation"``: :meth:`render_segmentation`)

@@ -584,10 +584,11 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     seeds = {label: len({r["seed"] for r in rows[label]}) for label in options}
     names = [label + (f" ({count(seeds[label], 'seed')})" if seeds[label] < 5 else "") for label in options]
     header = ["frames (first past)", *names, *(f"{label} − {other}, by seed" for label, other in pairs)]
-    commands, shown_above = (
-        [],
-        [label for label in one_core if options is not RECIPE_OPTIONS and options[label] in RECIPE_OPTIONS.values()],
-    )
+    # the runs of RECIPE_OPTIONS that another table shows again: their command is in the recipe options' footer
+    shown_above = [
+        label for label in one_core if options is not RECIPE_OPTIONS and options[label] in RECIPE_OPTIONS.values()
+    ]
+    commands = []
     for label in one_core:
         if label in shown_above:
             continue
