@@ -90,6 +90,8 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import torch
@@ -308,11 +310,30 @@ class MetaEvaluationLoss(LossModule):
         self.behaviour_epsilon = None if behaviour_epsilon is None else float(behaviour_epsilon)
         self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
         self._entropy_bonus = float(entropy_coeff) != 0.0
+        self._kept: dict[str, torch.Tensor] | None = None  # within same_rollouts(): the critics' values
 
     @property
     def functional(self) -> bool:
         """``False``: the modules are used as given, with their own parameters."""
         return False
+
+    @contextmanager
+    def same_rollouts(self) -> Iterator[None]:
+        """Within the block every call is on the same D2 and D1 with the same critics: their values (the baseline,
+        the credits) are computed once, and only ``pi_phi2``'s pass is taken again (several steps on one D2)."""
+        self._kept = {}
+        try:
+            yield
+        finally:
+            self._kept = None
+
+    def _held(self, name: str, compute: Callable[[], torch.Tensor]) -> torch.Tensor:
+        """``compute()``, or within :meth:`same_rollouts` what it gave the first time."""
+        if self._kept is None:
+            return compute()
+        if name not in self._kept:
+            self._kept[name] = compute()
+        return self._kept[name]
 
     @property
     def in_keys(self) -> list[NestedKey]:
@@ -416,12 +437,16 @@ class MetaEvaluationLoss(LossModule):
 
         # Baseline: (1/K) sum over D1's trajectories of mean_t V_w1(s_t).
         reference, ref_mask, ref_ids, num_ref = self._steps(reference, "reference (D1)")
-        baseline = self._trajectory_values(self.reference_critic, reference, ref_mask, ref_ids, num_ref).mean()
+        baseline = self._held(
+            "baseline",
+            lambda: self._trajectory_values(self.reference_critic, reference, ref_mask, ref_ids, num_ref).mean(),
+        )
 
         tensordict, mask, ids, num = self._steps(tensordict, "tensordict (D2)")
         record = tensordict if record_key in ((), "") else tensordict.get(record_key)
         if self.credit == "trajectory":  # the meta-evaluator of each trajectory of D2, for each of its steps
-            meta = (self._trajectory_values(self.critic, tensordict, mask, ids, num) - baseline).detach()
+            values = self._held("meta", lambda: self._trajectory_values(self.critic, tensordict, mask, ids, num))
+            meta = (values - baseline).detach()
             step_credit = meta[ids[mask]]
         else:  # a look after the episode's last move counts for nothing
             done = _flags(tensordict.get(keys.done), tensordict.batch_size, "tensordict (D2)", keys.done)
@@ -432,7 +457,8 @@ class MetaEvaluationLoss(LossModule):
                 )
             if self.credit in VIEW_CREDITS:
                 return self._every_look(record, mask, baseline, num, num_ref)
-            step_credit = meta = self._look_values(record, mask)  # each look's own value difference
+            # each look's own value difference
+            step_credit = meta = self._held("look", lambda: self._look_values(record, mask))
 
         # REINFORCE on the valid steps of D2, each weighted by its credit.
         steps = record.select(*self.looker_actor.in_keys, keys.looker_action, strict=False)[mask]
@@ -475,16 +501,7 @@ class MetaEvaluationLoss(LossModule):
                 f"credit='every_look' needs the views of every look at {(group, 'look_views')!r}: collect D2 with "
                 "make_env(..., look_views=True)"
             )
-        values = []
-        for look in range(views.get("pan").shape[-2]):
-            td = steps.select(*self.critic.in_keys, strict=False).clone(False)
-            for key in self.critic.in_keys:  # ("mover", "observation", k): the look's view, the looker's range
-                name = key[-1]
-                source = views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:]))
-                td.set(key, source)
-            with torch.no_grad():
-                values.append(self.critic(td).get(self.tensor_keys.value).reshape(-1))
-        q = torch.stack(values, -1).detach()  # (steps, looks)
+        q = self._held("views", lambda: self._view_values(steps, views, group))  # (steps, looks)
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
@@ -504,6 +521,19 @@ class MetaEvaluationLoss(LossModule):
             "best_look_right": best == LOOKER_ACTIONS.index("pan_right"),
         }
         return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref, shares)
+
+    def _view_values(self, steps: TensorDictBase, views: TensorDictBase, group: str) -> torch.Tensor:
+        """``(steps, looks)``: the critic's value of every look's view of each step, without gradient."""
+        values = []
+        for look in range(views.get("pan").shape[-2]):
+            td = steps.select(*self.critic.in_keys, strict=False).clone(False)
+            for key in self.critic.in_keys:  # ("mover", "observation", k): the look's view, the looker's range
+                name = key[-1]
+                source = views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:]))
+                td.set(key, source)
+            with torch.no_grad():
+                values.append(self.critic(td).get(self.tensor_keys.value).reshape(-1))
+        return torch.stack(values, -1).detach()
 
     def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref, shares=None):
         """The loss's tensordict: the losses, and the diagnostics of the looks (``importance_weight`` ``None``: 1;

@@ -31,7 +31,7 @@ from torch import nn
 
 from activeperc_env.config import is_number, with_field_docs
 from activeperc_env.core import JOINT_ACTIONS
-from activeperc_rl.config import Section, finite
+from activeperc_rl.config import Section, finite, int_in
 from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import LOOKER_CREDITS, VIEW_CREDITS, MetaEvaluationLoss
 from activeperc_rl.method_base import Iteration, Method
@@ -113,6 +113,8 @@ class MetaConfig(LookerOptions):
     """Adam learning rate of phi2 (the paper's preset: 3e-5)."""
     looker_optimizer: str = "adam"
     """phi2's optimizer, 'adam' or 'sgd' (whose steps grow with the meta-evaluator's size)."""
+    looker_steps: int = 1
+    """phi2's optimizer steps on each D2 (the paper: 1)."""
     shared_seeds: bool = True
     """E1 and E2 get the same layout streams (room i's k-th episode is the same layout in both)."""
     resample_d1: bool = True
@@ -136,6 +138,7 @@ class MetaConfig(LookerOptions):
             "looker_credit": (self.looker_credit in LOOKER_CREDITS, f"one of {LOOKER_CREDITS}"),
             "looker_lr": positive_rate(self.looker_lr),
             "looker_optimizer": (self.looker_optimizer in OPTIMIZERS, f"one of {OPTIMIZERS}"),
+            "looker_steps": (int_in(self.looker_steps, 1, 1000), "an int in 1 .. 1000"),
             "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
             "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
@@ -209,7 +212,9 @@ class Meta(_MoverA2C):
         options = self.options
         d1, d2 = self._next(self.e1), self._next(self.e2)
         frames, (returns, successes) = d1.numel() + d2.numel(), finished_episodes(d1)
-        losses = self._step("looker", self.meta_loss, d2, d1)
+        with self.meta_loss.same_rollouts():
+            for _ in range(options.looker_steps):
+                losses = self._step("looker", self.meta_loss, d2, d1)
         soft_update(self.phi1, self.phi2, options.alpha)
         if options.mover_rollouts == "all":
             both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)

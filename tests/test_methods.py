@@ -245,6 +245,28 @@ def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
     assert iteration.frames == (3 if resample_d1 else 2) * 2 * 4
 
 
+@pytest.mark.parametrize("looker_steps", [1, 3])
+def test_meta_takes_looker_steps_on_each_d2(looker_steps):
+    from activeperc_rl.recipe import TrainConfig, make_method
+
+    config = TrainConfig.from_options(
+        num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_steps=looker_steps
+    )
+    method = make_method(config, torch.device("cpu"))
+    steps, step = [], method._step
+    method._step = lambda name, *args: steps.append(name) or step(name, *args)
+    valued, value = [], method.meta_loss._view_values
+    method.meta_loss._view_values = lambda *args: valued.append(1) or value(*args)
+    try:
+        method.iterate()
+    finally:
+        method.close()
+    assert steps.count("looker") == looker_steps
+    assert len(valued) == 1  # the critic values the looks' views once for all the steps
+    state = method.optimizers["looker"].state
+    assert {int(s["step"]) for s in state.values()} == {looker_steps}
+
+
 def test_looker_and_mover_entropy_weights_are_separate():
     from activeperc_rl.recipe import TrainConfig, make_method
 
