@@ -152,8 +152,9 @@ class Meta(_MoverA2C):
 
     1. roll the mover out with phi1 in E1 (D1) and with epsilon-greedy phi2 in E2 (D2);
     2. meta-evaluator V(tau_k) of each D2 trajectory (eq. 2, :class:`MetaEvaluationLoss`);
-    3. REINFORCE step on phi2 with V(tau_k) in place of the return (``looker_credit``: what each look is credited
-       with; the default, ``best_look``, credits the look whose view the critic values most);
+    3. REINFORCE step on phi2 (``looker_steps`` of them) with V(tau_k) in place of the return (``looker_credit``:
+       what each look is credited with; the default, ``best_look``, credits the look whose view the critic values
+       most);
     4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
     5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it
        (``mover_rollouts='all'``: first one on the first D1 and D2 together);

@@ -495,21 +495,18 @@ RECIPE_PAIRS = [("linear", "constant (the default)"), ("linear, 32 x 8", "linear
 """Each option beside the recipe it changes."""
 
 SHORTER = "--frames 400000 --lr-schedule linear --num-envs 32 --rollout-length 8"
-RECIPE_BUDGET = {  # as RECIPE_OPTIONS: linear decay at 32 x 8 over a shorter run, without D1 sampled again, and the
-    # fixed camera with the same options
+RECIPE_BUDGET = {  # as RECIPE_OPTIONS: linear decay at 32 x 8 over a shorter run, and the fixed camera with the
+    # same options
     "600k frames": RECIPE_OPTIONS["linear, 32 x 8"],
     "400k frames": ("time_to_success_400k.csv", "meta", SHORTER),
-    "400k, no D1 again": ("time_to_success_400k_no_resample.csv", "meta", f"--no-resample-d1 {SHORTER}"),
     "400k, `fixed_forward`": ("time_to_success_400k.csv", "fixed_forward", f"--method fixed_forward {SHORTER}"),
 }
-"""Linear decay at 32 rooms x 8 cycles over 600,000 and 400,000 frames, the latter with one D1 an iteration, and the
-fixed camera over the latter."""
+"""Linear decay at 32 rooms x 8 cycles over 600,000 and 400,000 frames, and the fixed camera over the latter."""
 BUDGET_PAIRS = [
     ("400k frames", "600k frames"),
-    ("400k, no D1 again", "400k frames"),
     ("400k frames", "400k, `fixed_forward`"),
 ]
-"""The shorter run against the longer at the same frames, one D1 against two, and the looker's worth."""
+"""The shorter run against the longer at the same frames, and the looker's worth."""
 
 MANY = "--num-envs 256 --rollout-length 8 --frames 1000000 --lr-schedule linear"
 MANY_ROOMS = {  # as RECIPE_OPTIONS: benchmarks/gpu_learning.sh's first setting on the CPU, at two learning rates
@@ -518,6 +515,16 @@ MANY_ROOMS = {  # as RECIPE_OPTIONS: benchmarks/gpu_learning.sh's first setting 
 }
 """The recipe for many rooms (a GPU's), tried first on the CPU: 256 rooms x 8 cycles a rollout, 2,048 frames an
 update (32 x 8: 256)."""
+
+LOOKER_LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py (meta)
+    "--looker-lr 0.001": "time_to_success_400k_looker_lr.csv",
+    "--looker-steps 4": "time_to_success_400k_looker_steps.csv",
+    "--looker-steps 4 --e1-looks sample": "time_to_success_400k_looker_sample.csv",
+}
+"""The 400k recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2, the latter also with
+E1's looks drawn from ``phi1`` instead of its argmax."""
+LEVER_POINTS = (300_000, 400_000)
+REFIT = "experiments/results/looker_refit.csv"
 
 STEP = 100_000
 """The frames between two scores of the recipe tables' runs (``--every``): a point is named by the step it passed."""
@@ -533,9 +540,65 @@ def recipe_budget() -> str:
     return recipe_table(RECIPE_BUDGET, BUDGET_PAIRS)
 
 
+def looker_levers() -> str:
+    """Each of :data:`LOOKER_LEVERS`: held-out success at :data:`LEVER_POINTS`, mean ± 95 % interval over its seeds,
+    and its paired difference to the 400k recipe at the last of them."""
+    base, method, _ = RECIPE_BUDGET["400k frames"]
+    runs = {
+        flags: [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
+        for flags, name in ({"": base} | LOOKER_LEVERS).items()
+    }
+    success = {
+        flags: {(r["seed"], step(int(r["frames"]))): float(r["success_rate"]) for r in rows}
+        for flags, rows in runs.items()
+    }
+    last = LEVER_POINTS[-1]
+    lines, commands = [], []
+    for flags, points in success.items():
+        seeds = sorted({seed for seed, _ in points})
+        cells = [spread(points[seed, at] for seed in seeds) for at in LEVER_POINTS]
+        if not flags:
+            lines.append(["none (the 400k runs above)", str(len(seeds)), *cells, ""])
+            continue
+        paired = mean_ci([points[seed, last] - success[""][seed, last] for seed in seeds])
+        lines.append([f"`{flags}`", str(len(seeds)), *cells, spread_of(*paired, "+.2f")])
+        command = (
+            f"python benchmarks/time_to_success.py --seeds {' '.join(seeds)} --every {STEP} --reference none"
+            f" --csv {BENCH}/cpu2/{LOOKER_LEVERS[flags]} -- {flags} {SHORTER}"
+        )
+        commands += [{"command": command} | r for r in runs[flags]]
+    header = ["flags added", "seeds", *(f"{at:,} frames" for at in LEVER_POINTS), f"difference at {last:,}, by seed"]
+    return markdown(header, lines) + runs_footer(commands).removesuffix(".\n") + "; one core each, two at a time.\n"
+
+
 def many_rooms() -> str:
     """The runs of :data:`MANY_ROOMS` (see :func:`recipe_table`)."""
     return recipe_table(MANY_ROOMS, [])
+
+
+def looker_refit() -> str:
+    """How often a ``meta`` run's looker, and copies of it refitted on fresh labels, pick the critic's best look
+    (``experiments/looker_refit.py``): mean ± 95 % interval over the runs."""
+    rows = read(REFIT)
+    lookers = list(dict.fromkeys((r["looker"], r["steps"], r["lr"]) for r in rows))
+    lines = []
+    for looker, steps, lr in lookers:
+        mine = [r for r in rows if (r["looker"], r["steps"], r["lr"]) == (looker, steps, lr)]
+        name = f"`{looker}`" + (f" refitted, {steps} Adam steps at lr {float(lr):g}" if lr else ", as trained")
+        lines.append([name, spread(r["agreement"] for r in mine), spread(r["agreement_pan"] for r in mine)])
+    command = f"python experiments/looker_refit.py {braced(list(dict.fromkeys(r['run'] for r in rows)))} --csv {REFIT}"
+    header = ["looker", "greedy look = label", "where a pan gains > 0.03"]
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+
+
+def braced(paths: list[str]) -> str:
+    """``paths`` as one shell word where they differ only in a number at their end (``runs/seed{0,1,2}``), else
+    joined by spaces."""
+    stems = {path.rstrip("0123456789") for path in paths}
+    if len(paths) < 2 or len(stems) > 1:
+        return " ".join(paths)
+    stem = stems.pop()
+    return stem + "{" + ",".join(path[len(stem) :] for path in paths) + "}"
 
 
 def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str, str]]) -> str:
@@ -733,6 +796,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
     "recipe-budget": ("performance.md", recipe_budget),
+    "looker-refit": ("performance.md", looker_refit),
+    "looker-levers": ("performance.md", looker_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
         "performance.md",

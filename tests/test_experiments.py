@@ -24,6 +24,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("pan_vs_bearing.py", ["RUN", "--episodes", "0"], "--episodes=0 must be >= 1"),
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
         ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
+        ("looker_refit.py", ["RUN", "--lr", "0"], "--rooms, --cycles and --batch must be >= 1 and every --lr > 0"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):
@@ -117,6 +118,39 @@ def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
     lines = done.stdout.splitlines()
     assert lines[0].endswith("epsilon 0.3") and "Q(left)-Q(hold)" in lines[1]
     assert lines[2].startswith("not in view") and lines[2].endswith("0.00 1.00 0.00")  # the untrained phi2 holds
+
+
+def test_looker_refit_scores_a_meta_runs_lookers_and_refitted_copies(tmp_path):
+    import csv
+
+    import torch
+
+    from activeperc_env.core import HOLD
+    from activeperc_rl import cli
+    from activeperc_rl.recipe import make_method
+    from activeperc_rl.runtime.checkpoint import load_checkpoint, load_run_config, restore_method
+
+    sys.path.insert(0, str(EXPERIMENTS))
+    import looker_refit
+
+    out, table = tmp_path / "run", tmp_path / "refit.csv"
+    tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
+    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--bearing-bins", "12", "--out", str(out)]) == 0
+    argv = [str(out), "--rooms", "4", "--cycles", "12", "--steps", "2", "--batch", "16", "--lr", "1e-3"]
+    assert looker_refit.main([*argv, "--csv", str(table)]) == 0
+    rows = list(csv.DictReader(table.open()))
+    assert [(r["looker"], r["steps"], r["lr"]) for r in rows] == [
+        ("phi2", "0", ""),
+        ("phi1", "0", ""),
+        ("phi2", "2", "0.001"),
+    ]
+    config = load_run_config(out)
+    method = make_method(config, torch.device("cpu"), start=False)
+    restore_method(method, load_checkpoint(out / "checkpoint.pt"), out)
+    _, labels, _ = looker_refit.labelled_looks(method, config, 4, 12, "eval", 0)
+    assert int(rows[0]["cycles"]) == len(labels) > 0
+    # the barely trained phi2 still holds: its greedy look is the label where 'hold' is
+    assert rows[0]["agreement"] == f"{(labels == HOLD).float().mean():.3f}"
 
 
 def test_pan_vs_bearing_plays_the_evaluations_episodes(tmp_path):
