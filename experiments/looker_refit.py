@@ -109,9 +109,7 @@ def rows_of_run(run: str, args) -> list[dict]:
     ]
     for lr in args.lr:
         actor = refit(method.phi2, *train[:2], args.steps, lr, args.batch)
-        rows.append(
-            {"run": run, "looker": "phi2", "steps": args.steps, "lr": lr} | score(actor, *test, args.margin)
-        )
+        rows.append({"run": run, "looker": "phi2", "steps": args.steps, "lr": lr} | score(actor, *test, args.margin))
     return rows
 
 
