@@ -104,7 +104,9 @@ from torchrl.objectives.value import GAE
 
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 
-__all__ = ["LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "trajectory_ids", "trajectory_means"]
+__all__ = [
+    "LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "best_looks", "trajectory_ids", "trajectory_means",
+]  # fmt: skip
 
 LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
 """What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
@@ -115,6 +117,12 @@ BEST_LOOK_SHARES = ("best_look_agreement", "best_look_left", "best_look_right")
 right (logged with the credits that value every look)."""
 
 _REDUCTIONS = ("mean", "sum")
+
+
+def best_looks(values: torch.Tensor) -> torch.Tensor:
+    """The ``best_look`` label of each cycle from the critic's values of its looks' views ``(cycles, looks)``: the look
+    valued most, 'hold' unless a pan's view is valued above holding's."""
+    return torch.where(values.max(-1).values > values[:, HOLD], values.argmax(-1), HOLD)
 
 
 def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
@@ -505,7 +513,7 @@ class MetaEvaluationLoss(LossModule):
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
-        best = torch.where(q.max(-1).values > q[:, HOLD], q.argmax(-1), HOLD)  # the look the critic values most
+        best = best_looks(q)
         if self.credit == "best_look":  # cross-entropy toward the best look, 'hold' on a tie
             gain = dist.log_prob(best.reshape(dist.batch_shape)).reshape(-1)
         else:

@@ -562,10 +562,7 @@ def looker_levers() -> str:
             continue
         paired = mean_ci([points[seed, last] - success[""][seed, last] for seed in seeds])
         lines.append([f"`{flags}`", str(len(seeds)), *cells, spread_of(*paired, "+.2f")])
-        command = (
-            f"python benchmarks/time_to_success.py --seeds {' '.join(seeds)} --every {STEP} --reference none"
-            f" --csv {BENCH}/cpu2/{LOOKER_LEVERS[flags]} -- {flags} {SHORTER}"
-        )
+        command = time_to_success_command(seeds, STEP, LOOKER_LEVERS[flags], f"{flags} {SHORTER}")
         commands += [{"command": command} | r for r in runs[flags]]
     header = ["flags added", "seeds", *(f"{at:,} frames" for at in LEVER_POINTS), f"difference at {last:,}, by seed"]
     return markdown(header, lines) + runs_footer(commands).removesuffix(".\n") + "; one core each, two at a time.\n"
@@ -599,6 +596,15 @@ def braced(paths: list[str]) -> str:
         return " ".join(paths)
     stem = stems.pop()
     return stem + "{" + ",".join(path[len(stem) :] for path in paths) + "}"
+
+
+def time_to_success_command(seeds: list[str], every: int, name: str, flags: str) -> str:
+    """The ``time_to_success.py`` command that measured ``meta``'s (or ``flags``' method's) runs of ``seeds`` into the
+    CSV ``name`` of ``benchmarks/results/cpu2``."""
+    return (
+        f"python benchmarks/time_to_success.py --seeds {' '.join(seeds)} --every {every} --reference none"
+        f" --csv {BENCH}/cpu2/{name} -- {flags}"
+    )
 
 
 def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str, str]]) -> str:
@@ -656,12 +662,9 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
         if label in shown_above:
             continue
         name, _, flags = options[label]
-        seed_list = " ".join(sorted({r["seed"] for r in rows[label]}))
+        seeds = sorted({r["seed"] for r in rows[label]})
         every = step(min(int(r["frames"]) for r in rows[label]))  # the first score's step
-        command = (
-            f"python benchmarks/time_to_success.py --seeds {seed_list} --every {every} --reference none"
-            f" --csv {BENCH}/cpu2/{name} -- {flags}"
-        )
+        command = time_to_success_command(seeds, every, name, flags)
         commands += [{"command": command} | r for r in rows[label]]
     footer = runs_footer(commands).removesuffix(".\n")
     above = "".join(f"; {label}: the [recipe options](#time-to-a-looker-that-pays)' runs" for label in shown_above)

@@ -31,6 +31,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.core import HOLD
 from activeperc_rl.envs import LOOKER, make_env
+from activeperc_rl.losses import best_looks
 from activeperc_rl.models import EpsilonGreedyLooker
 from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
@@ -59,7 +60,7 @@ def labelled_looks(method, config, rooms: int, cycles: int, split: str, seed: in
     values = look_values(method.critic, record)
     gain = values.max(-1).values - values[:, HOLD]
     inputs = TensorDict({(LOOKER, "observation"): record["observation"]}, batch_size=record.batch_size)
-    return inputs, torch.where(gain > 0, values.argmax(-1), HOLD), gain
+    return inputs, best_looks(values), gain
 
 
 def score(actor, record, labels: torch.Tensor, gain: torch.Tensor, margin: float) -> dict:
