@@ -105,7 +105,8 @@ from torchrl.objectives.value import GAE
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 
 __all__ = [
-    "LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "best_looks", "trajectory_ids", "trajectory_means",
+    "LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "best_looks", "mirror", "trajectory_ids",
+    "trajectory_means",
 ]  # fmt: skip
 
 LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
@@ -117,6 +118,21 @@ BEST_LOOK_SHARES = ("best_look_agreement", "best_look_left", "best_look_right")
 right (logged with the credits that value every look)."""
 
 _REDUCTIONS = ("mean", "sum")
+
+
+MIRRORS = {"image": lambda x: x.flip(-2), "pan": torch.neg, "range": lambda x: x.flip(-1)}
+"""How each observation the critics read is seen in a mirror: the image flipped left to right (its width is the
+second-last axis), the pan negated, the range rays (right to left, symmetric about the heading) reversed."""
+
+
+def mirror(td: TensorDictBase) -> TensorDictBase:
+    """A copy of the observations ``td`` as seen in a mirror (:data:`MIRRORS`, by each key's last name); ``KeyError``
+    for an observation without a mirror image."""
+    mirrored = td.clone(False)
+    for key in td.keys(include_nested=True, leaves_only=True):
+        name = key[-1] if isinstance(key, tuple) else key
+        mirrored.set(key, MIRRORS[name](td.get(key)))
+    return mirrored
 
 
 def best_looks(values: torch.Tensor) -> torch.Tensor:
@@ -237,6 +253,9 @@ class MetaEvaluationLoss(LossModule):
         credit: ``"trajectory"`` (the paper): each look gets its trajectory's ``M(tau_k)``; ``"look"``: each look
             gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"every_look"`` and ``"best_look"``: every look of each
             cycle is valued (see the module docstring).
+        mirrored: with ``"every_look"`` and ``"best_look"``, value each look's view as the mean of the critic's
+            value of it and of its mirror image (flipped left to right, pan negated, range rays reversed): what the
+            look is worth to a mover as able on either side.
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
@@ -290,6 +309,7 @@ class MetaEvaluationLoss(LossModule):
         behaviour_epsilon: float | None = None,
         reduction: str = "mean",
         credit: str = "trajectory",
+        mirrored: bool = False,
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
@@ -315,6 +335,7 @@ class MetaEvaluationLoss(LossModule):
         self.reference_critic = reference_critic
         self.reduction = reduction
         self.credit = credit
+        self.mirrored = bool(mirrored)
         self.behaviour_epsilon = None if behaviour_epsilon is None else float(behaviour_epsilon)
         self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
         self._entropy_bonus = float(entropy_coeff) != 0.0
@@ -531,7 +552,8 @@ class MetaEvaluationLoss(LossModule):
         return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref, shares)
 
     def _view_values(self, steps: TensorDictBase, views: TensorDictBase, group: str) -> torch.Tensor:
-        """``(steps, looks)``: the critic's value of every look's view of each step, without gradient."""
+        """``(steps, looks)``: the critic's value of every look's view of each step, without gradient (with
+        ``mirrored``, the mean of its values of the view and of the view's mirror image)."""
         values = []
         for look in range(views.get("pan").shape[-2]):
             td = steps.select(*self.critic.in_keys, strict=False).clone(False)
@@ -540,7 +562,11 @@ class MetaEvaluationLoss(LossModule):
                 source = views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:]))
                 td.set(key, source)
             with torch.no_grad():
-                values.append(self.critic(td).get(self.tensor_keys.value).reshape(-1))
+                value = self.critic(td).get(self.tensor_keys.value).reshape(-1)
+                if self.mirrored:
+                    seen = mirror(td.select(*self.critic.in_keys))
+                    value = (value + self.critic(seen).get(self.tensor_keys.value).reshape(-1)) / 2
+            values.append(value)
         return torch.stack(values, -1).detach()
 
     def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref, shares=None):

@@ -129,6 +129,9 @@ class MetaConfig(LookerOptions):
     looker_importance_weights: bool = False
     """Weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it (the paper
     does not)."""
+    mirror_looks: bool = False
+    """With the 'best_look' and 'every_look' credits, value each look's view as the mean of the critic's value of it
+    and of its mirror image: what the look is worth to a mover as able on either side of the room."""
 
     def checks(self) -> dict[str, tuple[bool, str]]:
         """Each field's check."""
@@ -144,6 +147,10 @@ class MetaConfig(LookerOptions):
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
+            "mirror_looks": (
+                self.mirror_looks is False or (self.mirror_looks is True and self.looker_credit in VIEW_CREDITS),
+                f"true or false; true values every look: looker_credit one of {VIEW_CREDITS}",
+            ),
         }
 
 
@@ -192,6 +199,7 @@ class Meta(_MoverA2C):
             entropy_coeff=options.looker_entropy_coeff,
             behaviour_epsilon=options.epsilon if options.looker_importance_weights else None,
             credit=options.looker_credit,
+            mirrored=options.mirror_looks,
         )
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
         self._optimizer("looker", [self.phi2], options.looker_lr, options.looker_optimizer)

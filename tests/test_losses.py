@@ -17,6 +17,7 @@ from activeperc_rl.losses import (
     JointA2CLoss,
     MetaEvaluationLoss,
     SharedEncoderA2CLoss,
+    mirror,
     trajectory_ids,
     trajectory_means,
 )
@@ -375,6 +376,36 @@ def test_credits_that_value_every_look_log_how_often_phi2_picks_the_best_one(cre
     )
     shares = {key: out[key].item() for key in BEST_LOOK_SHARES}
     assert shares == {"best_look_agreement": 0.5, "best_look_left": 0.0, "best_look_right": 0.5}
+
+
+def test_mirrored_labels_value_each_look_for_a_mover_as_able_on_either_side():
+    # V = pan + pan^2: the views' Q = (2, 0, 12) and (0, 0, 2), labels right and right; their mirror images' V =
+    # -pan + pan^2; the mean, pan^2 = (1, 0, 9) and (0, 0, 4), keeps the labels. With V = pan alone the mean is 0:
+    # every look ties and 'hold' is the label.
+    def critic(value):
+        return TensorDictModule(value, in_keys=[PAN], out_keys=["state_value"])
+
+    def labels(value):
+        out = MetaEvaluationLoss(
+            make_actor(FixedLogits([0.0, 0.0, 1.0])), critic(value), pan_critic(), credit="best_look", mirrored=True
+        )(every_look_td(), reference_td())
+        return out["best_look_right"].item(), out["best_look_agreement"].item()
+
+    assert labels(lambda pan: pan + pan**2) == (1.0, 1.0)
+    assert labels(lambda pan: pan.clone()) == (0.0, 0.0)  # phi2's argmax, right, is never the label
+
+
+def test_the_mirror_image_of_an_observation():
+    image = torch.arange(2 * 3 * 4 * 3, dtype=torch.uint8).reshape(2, 3, 4, 3)  # (batch, height, width, rgb)
+    obs = TensorDict({("mover", "observation", "image"): image, ("mover", "observation", "pan"): torch.ones(2, 1)})
+    obs.set(("mover", "observation", "range"), torch.tensor([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]))
+    seen = mirror(obs)
+    assert torch.equal(seen["mover", "observation", "image"][:, :, 0], image[:, :, 3])  # left column <- right
+    assert torch.equal(seen["mover", "observation", "pan"], -torch.ones(2, 1))
+    assert seen["mover", "observation", "range"].tolist() == [[3.0, 2.0, 1.0], [6.0, 5.0, 4.0]]
+    assert torch.equal(mirror(seen)["mover", "observation", "image"], image)
+    with pytest.raises(KeyError):
+        mirror(TensorDict({"depth": torch.zeros(1)}))
 
 
 def test_credits_that_value_one_look_have_no_best_look_shares():
