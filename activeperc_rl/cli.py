@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(
         prog="activeperc-train",
         description="Train the mover and the looker (the paper's meta-evaluation or a baseline) in the active-"
-        "perception rooms. With no arguments: meta with the recipe that works in the default room (v3), 600,000 "
+        "perception rooms. With no arguments: meta with the recipe that works in the default room (v3), 400,000 "
         "frames, then the learned policy, the same mover with the camera held forward and random play on 100 "
         "held-out layouts.",
     )

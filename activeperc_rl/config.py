@@ -6,7 +6,7 @@ room's), and ``activeperc-train``'s flags and the YAML presets are made from the
 
     method: meta
     run:
-      frames: 600000
+      frames: 400000
     meta:
       epsilon: 0.1
     env:
@@ -77,13 +77,13 @@ class RunConfig(Section):
 
     NAME = "run"
 
-    frames: int = 600_000
+    frames: int = 400_000
     """Environment cycles to train for, counted over every room of every environment (E1 and E2 both)."""
     seed: int = 0
     """Seed of the models, of the exploration and of the training layouts."""
-    num_envs: int = 16
+    num_envs: int = 32
     """Rooms stepped together in each environment (E1 and E2 have this many each)."""
-    rollout_length: int = 16
+    rollout_length: int = 8
     """Cycles per room in one rollout: a rollout holds num_envs * rollout_length frames."""
     device: str = "auto"
     """Where the models run: 'cpu', 'cuda', or 'auto' (cuda when available)."""
@@ -172,7 +172,7 @@ class A2CConfig(Section):
     """The actor's and the critic's terms and GAE's values read one pass of their shared encoder per update (the same
     loss as TorchRL's A2CLoss to rounding, in half the time); false runs TorchRL's A2CLoss as it ships, as the runs
     saved before this option did."""
-    lr_schedule: str = "constant"
+    lr_schedule: str = "linear"
     """How every learning rate of the run (the mover's, the looker's, the joint agent's) moves over run.frames:
     'constant', or 'linear' (from its value at the first frame down to 0 at the last)."""
 

@@ -2,10 +2,10 @@
 room; the named presets; and how a recipe is read from YAML, from flags and from a saved run.
 
 The defaults are the recipe that works in the default room (room v3, ``meta`` with the ``best_look`` credit and
-the mover's bearing layout, 600,000 frames). The paper's algorithm as written is the preset ``paper``, and the
-Figure 1 pilot's room and recipe the preset ``pilot`` (``activeperc-train --preset paper``; files in
-``activeperc_rl/presets/``). In YAML each section is a mapping; a preset may hold the options of several methods
-(a run reads its own method's)::
+the mover's bearing layout, 400,000 frames of 32 rooms x 8 cycles, learning rates falling linearly). The paper's
+algorithm as written is the preset ``paper``, and the Figure 1 pilot's room and recipe the preset ``pilot``
+(``activeperc-train --preset paper``; files in ``activeperc_rl/presets/``). In YAML each section is a mapping; a
+preset may hold the options of several methods (a run reads its own method's)::
 
     method: meta
     run: {frames: 1000000, seed: 3}
@@ -36,6 +36,8 @@ PRESETS = Path(__file__).resolve().parent / "presets"
 """The named presets: ``NAME.yaml`` each (``activeperc-train --preset NAME``)."""
 LEGACY_DEFAULTS = {
     "frames": 300_000,
+    "num_envs": 16,
+    "rollout_length": 16,
     "looker_lr": 3e-5,
     "looker_credit": "trajectory",
     "bearing_bins": 0,

@@ -72,11 +72,15 @@ def sweep_outcome(row: dict) -> dict:
     }
 
 
+OLD_SHAPE = "--num-envs 16 --rollout-length 16 --lr-schedule constant"
+"""The run shape and schedule of the defaults before 2026-12-06: ``$OLD`` in the tables' commands."""
+
+
 def command_cell(row: dict) -> str:
-    """The command, the seeds of a row over seeds, and the row's note."""
+    """The command (:data:`OLD_SHAPE` as ``$OLD``), the seeds of a row over seeds, and the row's note."""
     seeds = f", seeds {row['seeds']}" if row["sweep"] else ""
     note = f" ({row['note']})" if row["note"] else ""
-    return f"`{row['command']}`{seeds}{note}"
+    return f"`{row['command'].replace(OLD_SHAPE, '$OLD')}`{seeds}{note}"
 
 
 def held_out_cell(row: dict) -> str:
@@ -127,7 +131,9 @@ def runs_table(name: str, columns: list[str]) -> str:
     rows = [sweep_outcome(row) if row["sweep"] else row for row in read(f"experiments/results/{name}.csv")]
     header = [RUN_COLUMNS[column][0] for column in columns]
     cells = [[RUN_COLUMNS[column][1](row) for column in columns] for row in rows]
-    return markdown(header, cells) + "\n" + provenance(rows)
+    old = any(OLD_SHAPE in row["command"] for row in rows) and "command" in columns
+    legend = f'`OLD="{OLD_SHAPE}"`, the defaults before 2026-12-06. ' if old else ""
+    return markdown(header, cells) + "\n" + legend + provenance(rows)
 
 
 def fig1_ablations() -> str:
@@ -176,8 +182,10 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
 
 
 V3_BEARING = "experiments/results/v3_bearing"
-V3_BEARING_600K = "experiments/results/v3_bearing_600k"
-V3_SEEDS_5_9 = "experiments/results/v3_600k_seeds5-9"
+V3_DEFAULT = "experiments/results/v3_400k"
+"""The default command (``meta``) and ``--method fixed_forward`` over seeds 0-9, at the default budget."""
+README_SEEDS = (range(5), range(5, 10))
+"""The seeds of README's columns."""
 
 
 def readme_results() -> str:
@@ -188,10 +196,11 @@ def readme_results() -> str:
         r for r in read("experiments/results/room_v3.csv") if (r["command"], r["seeds"]) == ("activeperc-train", "0")
     )
     columns = [[printout["success"], printout["camera_held"], "", "", printout["random"]]]
-    for folder in (V3_BEARING_600K, V3_SEEDS_5_9):
-        runs = [r for r in read(f"{folder}/summary.csv") if r["fov"] == "60"]
+    held_rows = read(f"{V3_DEFAULT}/pan_vs_bearing.csv")
+    for seeds in README_SEEDS:
+        runs = [r for r in read(f"{V3_DEFAULT}/summary.csv") if r["fov"] == "60" and int(r["seed"]) in seeds]
         meta = [r for r in runs if r["method"] == "meta_eps0.3"]
-        held = [r["success"] for r in read(f"{folder}/pan_vs_bearing.csv") if r["looker"] == "camera held"]
+        held = [r["success"] for r in held_rows if r["looker"] == "camera held" and run_seed(r["run"]) in seeds]
         _, mean, half = paired_difference(runs, "meta_eps0.3", 60)
         columns.append(
             [
@@ -209,13 +218,14 @@ def readme_results() -> str:
         "difference to `fixed_forward`, paired",
         "random play",
     ]
-    header = [
-        "room v3, 60°, 600k frames",
-        "seed 0 (printed)",
-        "seeds 0-4",
-        "seeds 5-9",
-    ]
+    frames = json.loads((ROOT / V3_DEFAULT / "sweep.json").read_text())["frames"]
+    header = [f"room v3, 60°, {frames // 1000}k frames", "seed 0 (printed)", "seeds 0-4", "seeds 5-9"]
     return markdown(header, [[name, *cells] for name, *cells in zip(names, *columns, strict=True)])
+
+
+def run_seed(run: str) -> int:
+    """The seed of a run directory ``.../seedS``."""
+    return int(run.rsplit("seed", 1)[1])
 
 
 def v3_sweep(folder: str) -> str:
@@ -223,6 +233,37 @@ def v3_sweep(folder: str) -> str:
     seeds and the paired differences."""
     rows = read(f"{folder}/summary.csv")
     return summary_table(rows) + "\n" + difference_table(rows)
+
+
+BUDGET = "experiments/results/budget.csv"
+
+
+def fig1_budget() -> str:
+    """What each Figure 1 method does with 1,000,000 frames (``experiments/fig1/budget.py``): each learner's
+    updates and the frames they learn from."""
+    rows = read(BUDGET)
+    lines = [
+        [
+            f"`{r['method']}`",
+            f"{int(r['frames_per_iteration']):,}",
+            f"{int(r['mover_updates']):,}",
+            f"{int(r['mover_frames']):,}",
+            f"{int(r['looker_updates']):,}" if int(r["looker_updates"]) else "none",
+            f"{int(r['looker_frames']):,}" if int(r["looker_updates"]) else "",
+        ]
+        for r in rows
+    ]
+    header = [
+        "method",
+        "frames an iteration",
+        "mover updates",
+        "frames they read",
+        "looker updates",
+        "frames they read",
+    ]
+    shape = {(r["num_envs"], r["rollout_length"]) for r in rows}
+    note = "; ".join(f"{envs} rooms x {cycles} cycles a rollout" for envs, cycles in sorted(shape))
+    return markdown(header, lines) + f"\nCommand: `python experiments/fig1/budget.py --csv {BUDGET}` ({note}).\n"
 
 
 CLAIM_ROOMS = {"v3": "experiments/results/v3_bearing/summary.csv", "v0": f"{FIG1}/summary.csv"}
@@ -448,15 +489,16 @@ def first_reached(points: dict, threshold: float) -> tuple | None:
 
 
 def time_to_success() -> str:
-    """Held-out success of the default command against training frames and minutes (``time_to_success.py``): mean ±
-    95 % interval over the seeds every point has, per method, and where each threshold is first reached."""
+    """Held-out success of the default command against training frames and minutes (``time_to_success.py``, the
+    runs of :data:`DEFAULT_CURVES`): mean ± 95 % interval over the seeds every point has, per method, and where each
+    threshold is first reached."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from time_to_success import THRESHOLDS, curve
 
-    rows = read(f"{BENCH}/cpu2/time_to_success.csv")
+    rows = read(f"{BENCH}/cpu2/{DEFAULT_CURVES}")
     methods = list(dict.fromkeys(r["method"] for r in rows))
     curves = {method: {frames: rest for frames, *rest in curve(rows, method)} for method in methods}
-    seeds = {method: len({r["seed"] for r in rows if r["method"] == method}) for method in methods}
+    seeds = {method: sorted({r["seed"] for r in rows if r["method"] == method}) for method in methods}
 
     def cell(point) -> str:
         if point is None:
@@ -473,40 +515,37 @@ def time_to_success() -> str:
             first = first_reached(curves[method], threshold)
             firsts.append(f"{first[0]:,} frames, {first[1][0]:.1f} min" if first else "not reached")
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts])
-    header = ["frames"] + [f"`{m}`, {seeds[m]} seed{'s' * (seeds[m] > 1)}" for m in methods]
-    seeds = " ".join(sorted({r["seed"] for r in rows}))
-    command = (
-        f"python benchmarks/time_to_success.py --seeds {seeds} --every 100000 --csv {BENCH}/cpu2/time_to_success.csv"
-    )
-    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+    header = ["frames"] + [f"`{m}`, {count(len(seeds[m]), 'seed')}" for m in methods]
+    commands = []
+    for method in methods:
+        flags = "" if method == "meta" else f"--method {method}"
+        command = time_to_success_command(seeds[method], STEP, DEFAULT_CURVES, flags)
+        commands += [{"command": command} | r for r in rows if r["method"] == method]
+    footer = runs_footer(commands).removesuffix(".\n")
+    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`).\n"
+
+
+DEFAULT_CURVES = "time_to_success_400k.csv"
+"""The CSV of ``time_to_success.py`` that holds the default command's runs (and ``fixed_forward``'s beside them)."""
+OLD_DEFAULT = f"--frames 600000 {OLD_SHAPE}"
+"""The budget, run shape and schedule of the defaults before 2026-12-06."""
+TWO_CORES = {"time_to_success.csv"}
+"""The CSVs of ``time_to_success.py`` whose runs had both cores to themselves (the others ran two at a time)."""
 
 
 RECIPE_OPTIONS = {  # column: (CSV of time_to_success.py, the method, the training flags)
-    "constant (the default)": ("time_to_success.csv", "meta", ""),
-    "linear": ("time_to_success_lr_linear.csv", "meta", "--lr-schedule linear"),
-    "linear, 32 x 8": (
-        "time_to_success_lr_linear_32x8.csv",
-        "meta",
-        "--lr-schedule linear --num-envs 32 --rollout-length 8",
-    ),
+    "constant, 16 x 16": ("time_to_success.csv", "meta", OLD_DEFAULT),
+    "linear": ("time_to_success_lr_linear.csv", "meta", "--frames 600000 --num-envs 16 --rollout-length 16"),
+    "linear, 32 x 8": ("time_to_success_lr_linear_32x8.csv", "meta", "--frames 600000"),
+    "linear, 32 x 8, 400k (the default)": (DEFAULT_CURVES, "meta", ""),
 }
-"""The options of the default recipe measured by ``time_to_success.py``."""
-RECIPE_PAIRS = [("linear", "constant (the default)"), ("linear, 32 x 8", "linear")]
-"""Each option beside the recipe it changes."""
-
-SHORTER = "--frames 400000 --lr-schedule linear --num-envs 32 --rollout-length 8"
-RECIPE_BUDGET = {  # as RECIPE_OPTIONS: linear decay at 32 x 8 over a shorter run, and the fixed camera with the
-    # same options
-    "600k frames": RECIPE_OPTIONS["linear, 32 x 8"],
-    "400k frames": ("time_to_success_400k.csv", "meta", SHORTER),
-    "400k, `fixed_forward`": ("time_to_success_400k.csv", "fixed_forward", f"--method fixed_forward {SHORTER}"),
-}
-"""Linear decay at 32 rooms x 8 cycles over 600,000 and 400,000 frames, and the fixed camera over the latter."""
-BUDGET_PAIRS = [
-    ("400k frames", "600k frames"),
-    ("400k frames", "400k, `fixed_forward`"),
+"""The options of the recipe measured by ``time_to_success.py``, from the defaults before 2026-12-06 to today's."""
+RECIPE_PAIRS = [
+    ("linear", "constant, 16 x 16"),
+    ("linear, 32 x 8", "linear"),
+    ("linear, 32 x 8, 400k (the default)", "linear, 32 x 8"),
 ]
-"""The shorter run against the longer at the same frames, and the looker's worth."""
+"""Each option beside the recipe it changes."""
 
 MANY = "--num-envs 256 --rollout-length 8 --frames 1000000 --lr-schedule linear"
 MANY_ROOMS = {  # as RECIPE_OPTIONS: benchmarks/gpu_learning.sh's first setting on the CPU, at two learning rates
@@ -521,7 +560,7 @@ LOOKER_LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_succ
     "--looker-steps 4": "time_to_success_400k_looker_steps.csv",
     "--looker-steps 4 --e1-looks sample": "time_to_success_400k_looker_sample.csv",
 }
-"""The 400k recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2, the latter also with
+"""The default recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2, the latter also with
 E1's looks drawn from ``phi1`` instead of its argmax."""
 LEVER_POINTS = (300_000, 400_000)
 REFIT = "experiments/results/looker_refit.csv"
@@ -535,15 +574,10 @@ def recipe_options() -> str:
     return recipe_table(RECIPE_OPTIONS, RECIPE_PAIRS)
 
 
-def recipe_budget() -> str:
-    """The runs of :data:`RECIPE_BUDGET` (see :func:`recipe_table`)."""
-    return recipe_table(RECIPE_BUDGET, BUDGET_PAIRS)
-
-
 def looker_levers() -> str:
     """Each of :data:`LOOKER_LEVERS`: held-out success at :data:`LEVER_POINTS`, mean ± 95 % interval over its seeds,
     and its paired difference to the 400k recipe at the last of them."""
-    base, method, _ = RECIPE_BUDGET["400k frames"]
+    base, method = DEFAULT_CURVES, "meta"
     runs = {
         flags: [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
         for flags, name in ({"": base} | LOOKER_LEVERS).items()
@@ -558,11 +592,11 @@ def looker_levers() -> str:
         seeds = sorted({seed for seed, _ in points})
         cells = [spread(points[seed, at] for seed in seeds) for at in LEVER_POINTS]
         if not flags:
-            lines.append(["none (the 400k runs above)", str(len(seeds)), *cells, ""])
+            lines.append(["none (the default's runs above)", str(len(seeds)), *cells, ""])
             continue
         paired = mean_ci([points[seed, last] - success[""][seed, last] for seed in seeds])
         lines.append([f"`{flags}`", str(len(seeds)), *cells, spread_of(*paired, "+.2f")])
-        command = time_to_success_command(seeds, STEP, LOOKER_LEVERS[flags], f"{flags} {SHORTER}")
+        command = time_to_success_command(seeds, STEP, LOOKER_LEVERS[flags], flags)
         commands += [{"command": command} | r for r in runs[flags]]
     header = ["flags added", "seeds", *(f"{at:,} frames" for at in LEVER_POINTS), f"difference at {last:,}, by seed"]
     return markdown(header, lines) + runs_footer(commands).removesuffix(".\n") + "; one core each, two at a time.\n"
@@ -600,11 +634,13 @@ def braced(paths: list[str]) -> str:
 
 def time_to_success_command(seeds: list[str], every: int, name: str, flags: str) -> str:
     """The ``time_to_success.py`` command that measured ``meta``'s (or ``flags``' method's) runs of ``seeds`` into the
-    CSV ``name`` of ``benchmarks/results/cpu2``."""
-    return (
+    CSV ``name`` of ``benchmarks/results/cpu2`` (the runs of today's defaults were made with these defaults as
+    flags: ``--frames 400000 --lr-schedule linear --num-envs 32 --rollout-length 8``)."""
+    command = (
         f"python benchmarks/time_to_success.py --seeds {' '.join(seeds)} --every {every} --reference none"
-        f" --csv {BENCH}/cpu2/{name} -- {flags}"
+        f" --csv {BENCH}/cpu2/{name}"
     )
+    return command + (f" -- {flags}" if flags else "")
 
 
 def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str, str]]) -> str:
@@ -617,7 +653,7 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     rows = {}
     for label, (name, method, _) in options.items():
         rows[label] = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
-    one_core = [label for label, (_, _, flags) in options.items() if flags]  # two runs at a time, one core each
+    one_core = [label for label, (name, _, _) in options.items() if name not in TWO_CORES]
     curves = {label: {f: rest for f, *rest in curve(rows[label], options[label][1])} for label in options}
     points = {label: {step(f): p for f, p in curves[label].items()} for label in options}
     success = {
@@ -653,22 +689,17 @@ def recipe_table(options: dict[str, tuple[str, str, str]], pairs: list[tuple[str
     seeds = {label: len({r["seed"] for r in rows[label]}) for label in options}
     names = [label + (f" ({count(seeds[label], 'seed')})" if seeds[label] < 5 else "") for label in options]
     header = ["frames (first past)", *names, *(f"{label} − {other}, by seed" for label, other in pairs)]
-    # the runs of RECIPE_OPTIONS that another table shows again: their command is in the recipe options' footer
-    shown_above = [
-        label for label in one_core if options is not RECIPE_OPTIONS and options[label] in RECIPE_OPTIONS.values()
-    ]
     commands = []
-    for label in one_core:
-        if label in shown_above:
-            continue
+    for label in options:
         name, _, flags = options[label]
         seeds = sorted({r["seed"] for r in rows[label]})
         every = step(min(int(r["frames"]) for r in rows[label]))  # the first score's step
         command = time_to_success_command(seeds, every, name, flags)
         commands += [{"command": command} | r for r in rows[label]]
     footer = runs_footer(commands).removesuffix(".\n")
-    above = "".join(f"; {label}: the [recipe options](#time-to-a-looker-that-pays)' runs" for label in shown_above)
-    return markdown(header, lines) + footer + above + "; two runs at a time, each on one core (`taskset`).\n"
+    alone = "".join(f"; {label}: one run at a time on both cores" for label in options if label not in one_core)
+    rest = "the others two at a time" if alone else "two runs at a time"
+    return markdown(header, lines) + footer + alone + f"; {rest}, each on one core (`taskset`).\n"
 
 
 def spread_of(mean: float, half: float, form: str = ".2f") -> str:
@@ -782,8 +813,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
     ),
     "readme-results": ("../README.md", readme_results),
-    "room-v3-bearing-600k": ("results.md", lambda: v3_sweep(V3_BEARING_600K)),
-    "room-v3-seeds-5-9": ("results.md", lambda: v3_sweep(V3_SEEDS_5_9)),
+    "room-v3-default": ("results.md", lambda: v3_sweep(V3_DEFAULT)),
+    "fig1-budget": ("results.md", fig1_budget),
     "room-v3": ("results.md", lambda: runs_table("room_v3", ["command", "held-out"])),
     "paper-claims": ("results.md", paper_claims),
     "portable-census": ("training.md", portable_census),
@@ -798,7 +829,6 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
-    "recipe-budget": ("performance.md", recipe_budget),
     "looker-refit": ("performance.md", looker_refit),
     "looker-levers": ("performance.md", looker_levers),
     "many-rooms": ("performance.md", many_rooms),

@@ -76,10 +76,14 @@ def probe_arguments(prog: str, description: str, looker: str) -> ArgumentParser:
 
 
 def probe_config(args) -> TrainConfig:
-    """``fixed_forward``'s config with the probe's budget, seed, room and bearing layout."""
+    """``fixed_forward``'s config with the probe's budget, seed, room and bearing layout, at the run shape and learning
+    rate schedule its committed results ran with (16 rooms x 16 cycles, constant)."""
     return TrainConfig.from_options(
         method="fixed_forward",
         frames=args.frames,
+        num_envs=16,
+        rollout_length=16,
+        lr_schedule="constant",
         seed=args.seed,
         bearing_bins=args.bearing_bins,
         env={"version": args.version},

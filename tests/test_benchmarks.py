@@ -336,7 +336,7 @@ def test_train_speed_parts_time_every_part_within_the_collections_and_restore_th
     originals = (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward)
     result = module.bench_method("meta", num_envs=2, seconds=0.01, warmup_iters=0, parts=True)
     assert (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward) == originals
-    assert result["iterations"] == 1 and result["frames"] == 3 * 16 * 2  # meta: three rollouts of 16 cycles, 2 rooms
+    assert result["iterations"] == 1 and result["frames"] == 3 * 8 * 2  # meta: three rollouts of 8 cycles, 2 rooms
     parts = result["parts_s"]
     assert list(parts) == list(module.PART_LABELS)
     assert all(parts[part] > 0 for part in ("move", "look", "render", "forward"))

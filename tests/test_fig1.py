@@ -22,6 +22,8 @@ from activeperc_rl.runtime import portable
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG1 = ROOT / "experiments" / "fig1"
+OLD_SHAPE = ["--num-envs", "16", "--rollout-length", "16", "--lr-schedule", "constant"]
+"""The run shape and learning rate schedule of the defaults before 2026-12-06, which earlier sweeps ran with."""
 TINY = ["--", "--num-envs", "2", "--rollout-length", "4", "--max-cycles", "10", "--checkpoint-every", "0.5"]
 
 
@@ -69,20 +71,50 @@ def test_one_whole_preset_per_method_and_fov_in_each_room(sweep, room):
 
 
 def test_the_default_rooms_presets_are_the_committed_room_v3_runs(sweep):
-    """experiments/results/v3_bearing ran the pilot's presets with the room v3 options after --: the v3 presets
-    are those configs, so its sweep.json names them and no options."""
+    """experiments/results/v3_bearing ran the pilot's presets with the room v3 options after --, when the run shape
+    and schedule were the pilot's: the v3 presets with the options its sweep.json names are those runs."""
     room_v3 = {"version": "3", "looker_credit": "best_look", "looker_lr": "3e-4", "bearing_bins": "30"}
+    then = ["--no-reuse-features"]  # the A2C loss before reuse_features existed
+    for folder in ("v3_bearing", "v3_bearing_600k", "v3_600k_seeds5-9"):
+        settings = json.loads((ROOT / "experiments" / "results" / folder / "sweep.json").read_text())
+        assert settings["options"] == [*OLD_SHAPE, *then], folder
     for path in sweep.find_configs(root=FIG1 / "configs" / "v3"):
         method = TrainConfig.from_dict(load_yaml(path)).method
         readers = {"looker_credit": ("meta",), "looker_lr": ("meta", "ia2c")}
-        flags = ["--config", str(FIG1 / "configs" / "v0" / path.name)]
+        flags = ["--config", str(FIG1 / "configs" / "v0" / path.name), *then]
         for name, value in room_v3.items():  # the sweep passed them all; the old trainer ignored the unread ones
             if method in readers.get(name, (method,)):
                 flags += [f"--{name.replace('_', '-')}", value]
-        assert cli.config_from_args(cli.build_parser().parse_args(flags)) == TrainConfig.from_dict(load_yaml(path))
-    for folder in ("v3_bearing", "v3_bearing_600k"):
-        settings = json.loads((ROOT / "experiments" / "results" / folder / "sweep.json").read_text())
-        assert (settings["configs"], settings["options"]) == ("experiments/fig1/configs/v3", [])
+        ran = cli.config_from_args(cli.build_parser().parse_args(flags))
+        preset = ["--config", str(path), *OLD_SHAPE, *then]
+        assert ran == cli.config_from_args(cli.build_parser().parse_args(preset)), path.name
+
+
+def test_the_budget_counts_each_learners_updates_and_frames(tmp_path, capsys):
+    """budget.py's counts per 1,000,000 frames, against what each method's iteration does with rollouts of B frames:
+    meta collects D1, D2 and D1 again and steps its mover twice (D1 with D2, then D1) and its looker once (D2)."""
+    budget = load("budget")
+    tiny, frames = {"num_envs": 2, "rollout_length": 4, "channels": (4,), "hidden_size": 8}, 8
+    row = {m: budget.count_updates(TrainConfig.from_options(method=m, **tiny), 2) for m in ("meta", "ia2c", "joint")}
+    per = budget.PER / (3 * frames)
+    assert (row["meta"]["frames_per_iteration"], row["meta"]["mover_frames"]) == (3 * frames, budget.PER)
+    assert (row["meta"]["mover_updates"], row["meta"]["looker_updates"]) == (round(2 * per), round(per))
+    assert row["meta"]["looker_frames"] == round(budget.PER / 3)
+    per = budget.PER / frames
+    assert row["joint"] | {"method": None} == {
+        "method": None, "num_envs": 2, "rollout_length": 4, "frames_per_iteration": frames,
+        "mover_updates": round(per), "mover_frames": budget.PER, "looker_updates": round(per),
+        "looker_frames": budget.PER,
+    }  # fmt: skip
+    assert row["ia2c"]["looker_updates"] == round(per) and 0 < row["ia2c"]["looker_frames"] < budget.PER
+    out = tmp_path / "budget.csv"
+    assert budget.main(["--only", "fixed_forward_fov60", "--iterations", "1", "--csv", str(out)]) == 0
+    (written,) = read_csv(out)
+    assert written["method"] == "fixed_forward" and written["looker_updates"] == "0"
+    assert int(written["mover_updates"]) * int(written["frames_per_iteration"]) == pytest.approx(budget.PER, abs=256)
+    with pytest.raises(SystemExit):
+        budget.main(["--iterations", "0"])
+    assert "--iterations 0: expected at least 1" in capsys.readouterr().err
 
 
 def test_ablations_change_one_option_of_meta_eps03_fov60(sweep):
@@ -507,35 +539,28 @@ def test_committed_looker_tables_have_looker_stats_columns(table):
     assert rows and list(rows[0]) == list(load("looker_stats").COLUMNS)
 
 
-def test_readmes_table_is_the_default_command_in_its_sweeps(aggregate):
-    """README's table (docs/tables.py writes it) reads two sweeps and a printout: both sweeps ran the v3 presets with
-    no options, whose meta preset at the sweeps' budget is the default TrainConfig (but for reuse_features, which
-    came after them: README says so); seed 0's printout is the last point of time_to_success.py's seed 0, the same
-    run trained in steps, and its random play the sweep's; on seeds 5-9, which nothing else quotes, the paired lead
-    over fixed_forward has its interval above 0."""
+def test_readmes_table_is_the_default_command_in_its_sweep(aggregate):
+    """README's table (docs/tables.py writes it) reads a sweep and a printout: the sweep ran the v3 presets with no
+    options, whose meta preset at the sweep's budget is the default TrainConfig; seed 0's printout is the sweep's
+    seed 0 and the last point of time_to_success.py's seed 0 (the same run, trained in steps); on seeds 5-9, which
+    nothing else quotes, the paired lead over fixed_forward has its interval above 0."""
     results = ROOT / "experiments" / "results"
-    for folder in ("v3_bearing_600k", "v3_600k_seeds5-9"):
-        settings = json.loads((results / folder / "sweep.json").read_text())
-        assert (settings["configs"], settings["options"]) == ("experiments/fig1/configs/v3", [])
-        preset = TrainConfig.from_dict(load_yaml(FIG1 / "configs" / "v3" / "meta_eps0.3_fov60.yaml"))
-        assert TrainConfig() == preset.replace(frames=settings["frames"])
-    readme = (ROOT / "README.md").read_text()
-    assert "seeds 0-9 ran `--no-reuse-features`" in readme
-    seed0 = next(
-        r
-        for r in read_csv(results / "v3_bearing_600k" / "summary.csv")
-        if (r["method"], r["fov"], r["seed"]) == ("meta_eps0.3", "60", "0")
-    )
+    settings = json.loads((results / "v3_400k" / "sweep.json").read_text())
+    assert (settings["configs"], settings["options"]) == ("experiments/fig1/configs/v3", [])
+    preset = TrainConfig.from_dict(load_yaml(FIG1 / "configs" / "v3" / "meta_eps0.3_fov60.yaml"))
+    assert TrainConfig() == preset.replace(frames=settings["frames"])
+    summary = read_csv(results / "v3_400k" / "summary.csv")
+    seed0 = next(r for r in summary if (r["method"], r["fov"], r["seed"]) == ("meta_eps0.3", "60", "0"))
     printout = next(
         r for r in read_csv(results / "room_v3.csv") if (r["command"], r["seeds"]) == ("activeperc-train", "0")
     )
-    steps = read_csv(ROOT / "benchmarks" / "results" / "cpu2" / "time_to_success.csv")
+    steps = read_csv(ROOT / "benchmarks" / "results" / "cpu2" / "time_to_success_400k.csv")
     last = [r for r in steps if (r["method"], r["seed"]) == ("meta", "0")][-1]
-    assert int(last["frames"]) >= TrainConfig().run.frames and float(printout["success"]) == float(last["success_rate"])
-    assert float(printout["random"]) == float(seed0["random_success_rate"])
-    seeds, mean, half = aggregate.paired_difference(
-        read_csv(results / "v3_600k_seeds5-9" / "summary.csv"), "meta_eps0.3", 60
-    )
+    assert int(last["frames"]) == int(seed0["frames"]) >= TrainConfig().run.frames
+    success = {float(printout["success"]), float(seed0["final_success_rate"]), float(last["success_rate"])}
+    assert len(success) == 1 and float(printout["random"]) == float(seed0["random_success_rate"])
+    later = [r for r in summary if int(r["seed"]) >= 5]
+    seeds, mean, half = aggregate.paired_difference(later, "meta_eps0.3", 60)
     assert seeds == [5, 6, 7, 8, 9] and mean - half > 0
 
 

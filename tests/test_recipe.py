@@ -38,10 +38,12 @@ def test_the_defaults_are_the_recipe_that_works_in_the_default_room():
     assert (config.options.looker_credit, config.options.looker_lr, config.network.bearing_bins) == (
         "best_look", 3e-4, 30
     )  # fmt: skip
-    assert config.run.frames == 600_000 and config.run.eval_episodes == 100
+    assert (config.run.frames, config.run.num_envs, config.run.rollout_length) == (400_000, 32, 8)
+    assert config.a2c.lr_schedule == "linear" and config.run.eval_episodes == 100
     # the README's command before the recipe became the defaults
     five_flags = ["--version", "3", "--looker-credit", "best_look", "--looker-lr", "3e-4", "--bearing-bins", "30"]
-    args = cli.build_parser().parse_args(["--preset", "pilot", "--frames", "600000", *five_flags])
+    shape = ["--frames", "400000", "--num-envs", "32", "--rollout-length", "8", "--lr-schedule", "linear"]
+    args = cli.build_parser().parse_args(["--preset", "pilot", *shape, *five_flags])
     assert cli.config_from_args(args) == config == cli.config_from_args(cli.build_parser().parse_args([]))
 
 

@@ -116,8 +116,10 @@ def test_a_resumed_run_is_the_uninterrupted_run(tmp_path, method):
     """Stopped at 200 frames and resumed to 800, a run logs the same rows and ends with the same networks as one
     run straight to 800: the checkpoint holds the rooms and the collectors' carried step, not only the networks.
     (The curriculum switches at 196 frames in both, its switch point being a fraction of the first run's budget: the
-    stop at 200 falls in the iteration that crosses it, and the resumed run must switch at its next one.)"""
+    stop at 200 falls in the iteration that crosses it, and the resumed run must switch at its next one.) At a
+    constant learning rate: a linear one spans the budget, which the resume changes (the next test's stop does not)."""
     tiny = ["--method", method, "--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0"]
+    tiny += ["--lr-schedule", "constant"]
     fractions = ([], [])
     if method == "curriculum":
         fractions = (["--curriculum-fraction", "0.245"], ["--curriculum-fraction", "0.98"])
@@ -150,7 +152,7 @@ def test_a_resumed_run_with_a_frame_stack_is_the_uninterrupted_run(tmp_path):
     """The rooms' past views are part of what a checkpoint holds: a run stopped and resumed stacks the same views
     (and, with best_look, credits the same stacked views of every look)."""
     tiny = ["--num-envs", "2", "--rollout-length", "4", "--eval-episodes", "0", "--frame-stack", "3"]
-    tiny += ["--bearing-bins", "0", "--version", "3", "--looker-credit", "best_look"]
+    tiny += ["--bearing-bins", "0", "--version", "3", "--looker-credit", "best_look", "--lr-schedule", "constant"]
     whole = run_cli(tmp_path, *tiny, "--frames", "800", name="whole")
     cut = run_cli(tmp_path, *tiny, "--frames", "200", name="cut")
     assert cli.main(["--out", str(cut), "--resume", "--frames", "800", "--no-progress"]) == 0
@@ -490,7 +492,7 @@ def test_bad_flags_are_named(tmp_path, capsys):
         ("looker_hold_prob", 1.0), ("looker_hold_prob", 0), ("mover_rollouts", "d2"), ("lr", 0), ("lr", "7e-4"),
         ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
         ("lr", float("inf")), ("max_grad_norm", float("nan")), ("entropy_coeff", float("inf")), ("seed", 2**63),
-        ("rollout_length", 1), ("collect_workers", 17), ("frame_stack", 0), ("frame_stack", 17), ("looker_steps", 0),
+        ("rollout_length", 1), ("collect_workers", 33), ("frame_stack", 0), ("frame_stack", 17), ("looker_steps", 0),
         # sizes that failed deep in torch, mujoco or deque
         ("num_envs", 10**18), ("rollout_length", 10**18), ("hidden_size", 10**18), ("channels", (16, 10**18)),
         ("success_window", 10**19), ("torch_threads", 10**18), ("learner_threads", 10**18),
@@ -509,6 +511,12 @@ def test_a_frame_stack_with_the_bearing_layout_is_refused():
     ):
         TrainConfig.from_options(frame_stack=2, bearing_bins=12)
     assert TrainConfig.from_options(frame_stack=2, bearing_bins=0).network.frame_stack == 2
+
+
+def test_mirrored_looks_without_a_credit_that_values_every_look_are_refused():
+    with pytest.raises(ValueError, match=re.escape("meta.mirror_looks=True is invalid: expected true or false; true")):
+        TrainConfig.from_options(mirror_looks=True, looker_credit="look")
+    assert TrainConfig.from_options(mirror_looks=True, looker_credit="every_look").options.mirror_looks is True
 
 
 def test_preset_then_flags(tmp_path):

@@ -73,8 +73,9 @@ from activeperc_rl.runtime.signals import stop_raises_interrupt
 
 HERE = Path(__file__).resolve().parent
 CONFIGS = HERE / "configs"
-ROOMS = {"v3": (HERE.parent / "results" / "v3_bearing", 1_000_000), "v0": (HERE / "results", 300_000)}
-"""Each room's folder of presets (``configs/ROOM``): its committed results folder and frame budget."""
+ROOMS = {"v3": (HERE.parent / "results" / "v3", 1_000_000), "v0": (HERE / "results", 300_000)}
+"""Each room's folder of presets (``configs/ROOM``): its results folder and frame budget (room v3's runs of the
+defaults before 2026-12-06 are in ``experiments/results/v3_bearing``)."""
 METHODS = ("meta_eps0.1", "meta_eps0.3", "fixed_forward", "joint", "ia2c", "curriculum")
 """The paper's methods, in the order the sweep runs and the figures list them."""
 SUMMARY_COLUMNS = (
