@@ -1,7 +1,8 @@
 """activeperc_rl: TorchRL training of the mover and the looker (meta-evaluation and baselines).
 
 Entry points: :func:`make_env` (the batched TorchRL env, an :class:`ActivePerceptionEnv`), :class:`TrainConfig` (a
-training recipe: ``TrainConfig()`` is the one that works in the default room), :class:`MetaEvaluationLoss`,
+training recipe: ``TrainConfig()`` is the one that works in the default room), :func:`pretrained` (a trained mover
+and looker shipped with the package), :class:`MetaEvaluationLoss`,
 ``activeperc_rl.train.train`` and ``activeperc_rl.evaluate.evaluate`` (and the console scripts ``activeperc-train``
 and ``activeperc-eval``).
 """
@@ -23,6 +24,7 @@ _PUBLIC = {
     "MetaEvaluationLoss": "activeperc_rl.losses",
     "TrainConfig": "activeperc_rl.recipe",
     "make_env": "activeperc_rl.envs",
+    "pretrained": "activeperc_rl.policies",
 }
 __all__ = list(_PUBLIC)
 

@@ -24,10 +24,11 @@ from activeperc_env.render import side_by_side
 from activeperc_rl.config import DEVICES
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
+from activeperc_rl.policies import PRETRAINED, WEIGHTS, is_policy, policy_from_saved
 from activeperc_rl.recipe import TrainConfig, make_method
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import atomic_path, check_writable
-from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restore_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, checked_checkpoint, read_saved, restore_method
 from activeperc_rl.runtime.signals import stop_raises_interrupt
 
 MAX_ROOMS = 16
@@ -145,15 +146,19 @@ def room_quotas(episodes: int) -> np.ndarray:
 
 
 def load_policy(path: str | Path, device="cpu"):
-    """Load a run directory or a checkpoint file: ``(config, mover_policy, looker)``.
+    """Load a run directory, a checkpoint file or a policy file (:mod:`activeperc_rl.policies`):
+    ``(config, mover_policy, looker)``.
 
-    Raises ``ValueError`` naming the path when it is neither, or when the checkpoint is unusable.
+    Raises ``ValueError`` naming the path when it is none of them, or when the file is unusable.
     """
     path = Path(path)
     file = path / CHECKPOINT if path.is_dir() else path
     if not path.exists():
-        raise ValueError(f"{str(path)!r} does not exist: give a run directory or a checkpoint file")
-    state = load_checkpoint(file)
+        raise ValueError(f"{str(path)!r} does not exist: give a run directory, a checkpoint or a policy file")
+    saved = read_saved(file)
+    if is_policy(saved):
+        return policy_from_saved(saved, file, device)
+    state = checked_checkpoint(saved, file)
     config = TrainConfig.from_saved(state["config"])
     method = make_method(config, torch_device(device), start=False)
     restore_method(method, state, file)
@@ -185,7 +190,14 @@ def main(argv: list[str] | None = None) -> int:
         prog="activeperc-eval",
         description="Evaluate a run (or a random policy in the run's config) on held-out episodes.",
     )
-    parser.add_argument("run", help="a run directory (holding checkpoint.pt) or a checkpoint file")
+    parser.add_argument(
+        "run", nargs="?", help="a run directory (holding checkpoint.pt), a checkpoint file or a policy file"
+    )
+    parser.add_argument(
+        "--pretrained",
+        choices=tuple(PRETRAINED),
+        help="a policy shipped with activeperc instead of RUN: the default recipe trained at 60 or 100 degrees",
+    )
     parser.add_argument("--episodes", type=whole_number, default=100, help="number of episodes (default 100)")
     parser.add_argument(
         "--seed",
@@ -202,10 +214,13 @@ def main(argv: list[str] | None = None) -> int:
         "--device", default="cpu", choices=DEVICES, help="device of the policy (default cpu; auto: cuda when available)"
     )
     args = parser.parse_args(argv)
+    if (args.run is None) == (args.pretrained is None):
+        parser.error("give either RUN or --pretrained NAME")
     try:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
             device = torch_device(args.device)
-            config, mover_policy, looker = load_policy(args.run, device)
+            run = args.run if args.pretrained is None else WEIGHTS / f"{args.pretrained}.pt"
+            config, mover_policy, looker = load_policy(run, device)
             if config.run.portable and argv is None:
                 portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too
             if args.random:

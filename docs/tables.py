@@ -266,6 +266,33 @@ def fig1_budget() -> str:
     return markdown(header, lines) + f"\nCommand: `python experiments/fig1/budget.py --csv {BUDGET}` ({note}).\n"
 
 
+PRETRAINED = "experiments/results/pretrained.csv"
+
+
+def pretrained() -> str:
+    """The shipped policies' held-out success (``experiments/pretrained.py``), beside their runs' own evaluation."""
+    rows = read(PRETRAINED)
+    lines = [
+        [
+            f"`{r['policy']}`",
+            f"`{r['trained_by']}`",
+            f"{int(r['frames']):,}",
+            f"{float(r['learned']):.2f} ({float(r['run_learned']):.2f})",
+            f"{float(r['camera_held']):.2f}",
+            f"{float(r['random']):.2f}",
+        ]
+        for r in rows
+    ]
+    header = ["policy", "trained by", "frames", "shipped (run)", "camera held forward", "random play"]
+    episodes = {r["episodes"] for r in rows}
+    return (
+        markdown(header, lines)
+        + f"\nHeld-out success on {'/'.join(sorted(episodes))} layouts (seed 0); in brackets, the run's weights before "
+        + f"half precision. Command: `{rows[0]['command']}`. "
+        + provenance(rows)
+    )
+
+
 CLAIM_ROOMS = {"v3": "experiments/results/v3_bearing/summary.csv", "v0": f"{FIG1}/summary.csv"}
 """The Figure 1 sweep of each room the paper's claims are judged in."""
 BASELINES = ("fixed_forward", "joint", "ia2c", "curriculum")
@@ -816,6 +843,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "readme-results": ("../README.md", readme_results),
     "room-v3-default": ("results.md", lambda: v3_sweep(V3_DEFAULT)),
     "fig1-budget": ("results.md", fig1_budget),
+    "pretrained": ("training.md", pretrained),
     "room-v3": ("results.md", lambda: runs_table("room_v3", ["command", "held-out"])),
     "paper-claims": ("results.md", paper_claims),
     "portable-census": ("training.md", portable_census),

@@ -43,21 +43,31 @@ def save_checkpoint(path: str | Path, state: dict) -> None:
 def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict:
     """Read a checkpoint; with ``config``, check that the checkpoint was trained with it.
 
-    Raises ``ValueError`` naming the file when it is missing, unreadable or damaged (a part of it that does not match
-    the CRC-32 checksum ``torch.save`` wrote for it), or naming the options
-    that differ from ``config`` (those in :data:`RESUMABLE` may differ).
+    Raises ``ValueError`` naming the file when it is missing, unreadable or damaged (:func:`read_saved`), or naming
+    the options that differ from ``config`` (those in :data:`RESUMABLE` may differ).
     """
+    return checked_checkpoint(read_saved(path), path, config)
+
+
+def read_saved(path: str | Path, kind: str = "checkpoint", weights_only: bool = False):
+    """What ``torch.save`` wrote to ``path``; ``ValueError`` naming the file (a ``kind``) when it is missing,
+    unreadable or damaged (a part of it that does not match the CRC-32 checksum ``torch.save`` wrote for it)."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"no checkpoint at {str(path)!r}")
+        raise ValueError(f"no {kind} at {str(path)!r}")
     try:
         with zipfile.ZipFile(path) as archive:  # torch.save's archive: a CRC-32 checksum of every part
             damaged = archive.testzip()
-        state = None if damaged else torch.load(path, map_location="cpu", weights_only=False)
+        state = None if damaged else torch.load(path, map_location="cpu", weights_only=weights_only)
     except Exception as error:  # any unpickling failure means an unusable file
-        raise ValueError(f"checkpoint {str(path)!r} cannot be read: {error}") from error
+        raise ValueError(f"{kind} {str(path)!r} cannot be read: {error}") from error
     if damaged:
-        raise ValueError(f"checkpoint {str(path)!r} is damaged: its part {damaged!r} does not match its checksum")
+        raise ValueError(f"{kind} {str(path)!r} is damaged: its part {damaged!r} does not match its checksum")
+    return state
+
+
+def checked_checkpoint(state, path: str | Path, config: TrainConfig | None = None) -> dict:
+    """``state``, read from ``path``, once it is known to be a checkpoint (trained with ``config`` when given)."""
     if not isinstance(state, dict) or "config" not in state or "method" not in state:
         raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
     if config is not None:
