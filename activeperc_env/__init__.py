@@ -1,6 +1,7 @@
 """activeperc_env: the active-perception room of the meta-evaluation paper, for MARL and RL code.
 
-PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`.
+PettingZoo: :func:`env` (AEC, order-enforced), :class:`raw_env`, :class:`parallel_env`; :func:`image_only` wraps
+either so that each agent observes its camera image alone (a ``Box``).
 Gymnasium (registered on import): ``activeperc/Joint-vK`` and ``activeperc/FixedForward-vK`` for each room ``K``
 (``activeperc/Joint``: the newest, room v3, the default); ``gymnasium.make_vec`` steps all their rooms in one batched
 core (:class:`JointVectorEnv`, :class:`FixedForwardVectorEnv`). Scripted movers and lookers:
@@ -22,6 +23,7 @@ from activeperc_env.gym_envs import FixedForwardEnv, JointEnv  # noqa: E402
 from activeperc_env.gym_vector import FixedForwardVectorEnv, JointVectorEnv  # noqa: E402
 from activeperc_env.pettingzoo_env import LOOKER, MOVER, env, parallel_env, raw_env  # noqa: E402
 from activeperc_env.rooms import ROOMS, mover_actions  # noqa: E402
+from activeperc_env.wrappers import image_only  # noqa: E402
 
 __all__ = [
     "EnvConfig",
@@ -34,6 +36,7 @@ __all__ = [
     "MOVER",
     "Simulator",
     "env",
+    "image_only",
     "mover_actions",
     "parallel_env",
     "raw_env",

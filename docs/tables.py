@@ -287,8 +287,8 @@ def pretrained() -> str:
     episodes = {r["episodes"] for r in rows}
     return (
         markdown(header, lines)
-        + f"\nHeld-out success on {'/'.join(sorted(episodes))} layouts (seed 0); in brackets, the run's weights before "
-        + f"half precision. Command: `{rows[0]['command']}`. "
+        + f"\nHeld-out success on {'/'.join(sorted(episodes))} layouts (seed 0); in brackets, the run's float weights. "
+        + f"Command: `{rows[0]['command']}`. "
         + provenance(rows)
     )
 

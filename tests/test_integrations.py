@@ -1,8 +1,14 @@
-"""Other RL libraries on our envs: Tianshou's multi-agent DQN on the AEC env, as docs/env.md shows it."""
+"""Other RL libraries on our envs, as docs/env.md shows them: Tianshou's multi-agent DQN on the AEC env,
+Stable-Baselines3's PPO through SuperSuit on the image-only parallel env."""
 
+import gymnasium
 import numpy as np
 import pytest
+import supersuit as ss
 import torch
+from pettingzoo.test import api_test, parallel_api_test
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
 from tianshou.algorithm import DQN, MultiAgentOffPolicyAlgorithm
 from tianshou.algorithm.modelfree.dqn import DiscreteQLearningPolicy
 from tianshou.algorithm.optim import AdamOptimizerFactory
@@ -93,3 +99,48 @@ def test_tianshou_credits_the_looker_only_with_own_turn(looker_reward):
         assert totals[LOOKER] == pytest.approx(totals[MOVER])
     else:  # the pitfall: the shared reward comes with the mover's step, and Tianshou credits it to the mover alone
         assert totals[LOOKER] == 0.0
+
+
+def test_image_only_envs_pass_pettingzoo_api_tests_and_observe_the_image():
+    aec = activeperc_env.image_only(activeperc_env.env(max_cycles=20))
+    api_test(aec, num_cycles=30)
+    parallel = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20))
+    parallel_api_test(parallel, num_cycles=30)
+    plain = activeperc_env.parallel_env(max_cycles=20)
+    images, _ = parallel.reset(seed=3)
+    full, _ = plain.reset(seed=3)
+    for agent in plain.agents:
+        assert parallel.observation_space(agent) is parallel.observation_space(agent)
+        assert np.array_equal(images[agent], full[agent]["image"])
+    ss.black_death_v3(parallel)  # SuperSuit's Box-only wrappers take it
+    with pytest.raises(TypeError, match="expected a PettingZoo AEC or parallel env"):
+        activeperc_env.image_only(gymnasium.make("activeperc/Joint-v3"))
+
+
+class RewardTotals(BaseCallback):
+    """The rewards of each slot of the vectorised env, summed over the steps SB3 collected."""
+
+    def __init__(self):
+        super().__init__()
+        self.totals = 0.0
+
+    def _on_step(self) -> bool:
+        self.totals = self.totals + self.locals["rewards"]
+        return True
+
+
+def test_stable_baselines3_with_supersuit_gives_both_agents_the_reward():
+    """docs/env.md's example in EASY_ROOM: SB3's PPO steps one policy for both agents, and each agent's slot of the
+    vectorised env receives every reward of its room."""
+    env = activeperc_env.image_only(activeperc_env.parallel_env(**EASY_ROOM))
+    env = ss.agent_indicator_v0(env)
+    env = ss.pettingzoo_env_to_vec_env_v1(env)
+    env = ss.concat_vec_envs_v1(env, 2, num_cpus=0, base_class="stable_baselines3")
+    assert env.num_envs == 4 and env.observation_space.shape == (60, 80, 5)
+    torch.manual_seed(0)
+    model = PPO("CnnPolicy", env, n_steps=64, batch_size=64, n_epochs=1)
+    totals = RewardTotals()
+    model.learn(total_timesteps=256, callback=totals)
+    mover, looker = totals.totals[0::2], totals.totals[1::2]  # slots alternate mover_0, looker_0 in each room
+    assert mover.sum() > 1.0, "moves in the easy room should reach the goal in several episodes"
+    assert np.allclose(mover, looker)
