@@ -1,12 +1,17 @@
 """Other RL libraries on our envs, as docs/env.md shows them: Tianshou's multi-agent DQN on the AEC env,
-Stable-Baselines3's PPO through SuperSuit on the image-only parallel env."""
+Stable-Baselines3's PPO through SuperSuit and RLlib's PPO on the image-only parallel env."""
 
 import gymnasium
 import numpy as np
 import pytest
+import ray
 import supersuit as ss
 import torch
 from pettingzoo.test import api_test, parallel_api_test
+from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+from ray.tune.registry import register_env
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from tianshou.algorithm import DQN, MultiAgentOffPolicyAlgorithm
@@ -112,6 +117,12 @@ def test_image_only_envs_pass_pettingzoo_api_tests_and_observe_the_image():
     for agent in plain.agents:
         assert parallel.observation_space(agent) is parallel.observation_space(agent)
         assert np.array_equal(images[agent], full[agent]["image"])
+    floats = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20), floats=True)
+    scaled, _ = floats.reset(seed=3)
+    assert floats.observation_space(MOVER).dtype == np.float32 and floats.observation_space(MOVER).contains(
+        scaled[MOVER]
+    )
+    assert np.array_equal(scaled[MOVER], full[MOVER]["image"].astype(np.float32) / 255)
     ss.black_death_v3(parallel)  # SuperSuit's Box-only wrappers take it
     with pytest.raises(TypeError, match="expected a PettingZoo AEC or parallel env"):
         activeperc_env.image_only(gymnasium.make("activeperc/Joint-v3"))
@@ -144,3 +155,30 @@ def test_stable_baselines3_with_supersuit_gives_both_agents_the_reward():
     mover, looker = totals.totals[0::2], totals.totals[1::2]  # slots alternate mover_0, looker_0 in each room
     assert mover.sum() > 1.0, "moves in the easy room should reach the goal in several episodes"
     assert np.allclose(mover, looker)
+
+
+def test_rllib_trains_a_module_per_agent_and_both_receive_the_reward():
+    """docs/env.md's RLlib example in EASY_ROOM: one PPO iteration on the float images, and the looker's episodes
+    return what the mover's do."""
+    register_env(
+        "activeperc_easy",
+        lambda options: ParallelPettingZooEnv(activeperc_env.image_only(activeperc_env.parallel_env(**options), True)),
+    )
+    config = (
+        PPOConfig()
+        .environment("activeperc_easy", env_config=EASY_ROOM)
+        .multi_agent(policies={MOVER, LOOKER}, policy_mapping_fn=lambda agent_id, episode, **kwargs: agent_id)
+        .rl_module(model_config=DefaultModelConfig(conv_filters=[[16, [8, 8], 4], [32, [4, 4], 2], [64, [4, 4], 2]]))
+        .env_runners(num_env_runners=0)
+        .training(train_batch_size_per_learner=256, minibatch_size=64, num_epochs=1)
+        .debugging(seed=0)
+    )
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        algo = config.build_algo()
+        returns = algo.train()["env_runners"]["agent_episode_returns_mean"]
+        algo.stop()
+    finally:
+        ray.shutdown()
+    assert returns[MOVER] > 0.1, "moves in the easy room should reach the goal in several episodes"
+    assert returns[LOOKER] == pytest.approx(returns[MOVER])
