@@ -107,6 +107,7 @@ def test_a_copied_gymnasium_env_goes_on_as_the_original(how):
             assert same(env.reset(), env_twin.reset())
 
 
+@pytest.mark.extras
 def test_a_copied_torchrl_env_goes_on_as_the_original():
     import torch
     from torchrl.envs.utils import step_mdp

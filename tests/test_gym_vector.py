@@ -219,6 +219,7 @@ def test_gymnasium_vector_wrappers_count_episodes():
     vec.close()
 
 
+@pytest.mark.extras
 def test_torchrl_gym_wrapper_runs_it_with_autoreset_disabled():
     import torch
     from torchrl.envs import GymWrapper

@@ -309,6 +309,7 @@ def test_the_aec_env_is_not_converted_to_another_game():
     api_test(aec, num_cycles=20)
 
 
+@pytest.mark.extras
 def test_supersuit_frame_skip_draws_from_np_random_seeded_by_reset():
     """SuperSuit's parallel frame_skip_v0 with a range draws its skips from env.unwrapped.np_random."""
     import supersuit as ss
