@@ -24,11 +24,11 @@ from activeperc_env.render import side_by_side
 from activeperc_rl.config import DEVICES
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env, torch_device
 from activeperc_rl.models import RandomPolicy
-from activeperc_rl.policies import PRETRAINED, WEIGHTS, is_policy, policy_from_saved
-from activeperc_rl.recipe import TrainConfig, make_method
+from activeperc_rl.policies import PRETRAINED, is_policy, policy_from_saved, pretrained
+from activeperc_rl.recipe import TrainConfig
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import atomic_path, check_writable
-from activeperc_rl.runtime.checkpoint import CHECKPOINT, checked_checkpoint, read_saved, restore_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, checked_checkpoint, read_saved, restored_method
 from activeperc_rl.runtime.signals import stop_raises_interrupt
 
 MAX_ROOMS = 16
@@ -155,15 +155,15 @@ def load_policy(path: str | Path, device="cpu"):
     file = path / CHECKPOINT if path.is_dir() else path
     if not path.exists():
         raise ValueError(f"{str(path)!r} does not exist: give a run directory, a checkpoint or a policy file")
-    saved = read_saved(file)
+    try:  # a policy file holds tensors and plain values alone, and is read as such
+        saved = read_saved(file, "policy file", weights_only=True)
+    except ValueError:  # a checkpoint holds more (random states): read it whole below, where a damaged file fails too
+        saved = None
     if is_policy(saved):
         return policy_from_saved(saved, file, device)
-    state = checked_checkpoint(saved, file)
-    config = TrainConfig.from_saved(state["config"])
-    method = make_method(config, torch_device(device), start=False)
-    restore_method(method, state, file)
-    mover_policy, looker = method.policy()
-    return config, mover_policy, looker
+    state = checked_checkpoint(read_saved(file, "checkpoint" if path.is_dir() else "checkpoint or policy file"), file)
+    config, method = restored_method(state, file, torch_device(device))
+    return (config, *method.policy())
 
 
 def _video_frame(env, images: torch.Tensor) -> np.ndarray:
@@ -188,7 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``activeperc-eval``."""
     parser = ArgumentParser(
         prog="activeperc-eval",
-        description="Evaluate a run (or a random policy in the run's config) on held-out episodes.",
+        description="Evaluate a run, a policy file or a shipped policy (or random play in its config) on held-out "
+        "episodes.",
     )
     parser.add_argument(
         "run", nargs="?", help="a run directory (holding checkpoint.pt), a checkpoint file or a policy file"
@@ -219,8 +220,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with stop_raises_interrupt():  # a kill or a closing terminal stops it as Ctrl-C does
             device = torch_device(args.device)
-            run = args.run if args.pretrained is None else WEIGHTS / f"{args.pretrained}.pt"
-            config, mover_policy, looker = load_policy(run, device)
+            if args.pretrained is None:
+                config, mover_policy, looker = load_policy(args.run, device)
+            else:
+                config, mover_policy, looker = pretrained(args.pretrained, device)
             if config.run.portable and argv is None:
                 portable.restart_pinned("activeperc-eval")  # a portable run is evaluated with its kernels too
             if args.random:

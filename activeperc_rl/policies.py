@@ -21,10 +21,12 @@ import torch
 from activeperc_rl.envs import torch_device
 from activeperc_rl.recipe import TrainConfig, make_method
 from activeperc_rl.runtime.atomic import atomic_path
-from activeperc_rl.runtime.checkpoint import CHECKPOINT, EVAL, load_checkpoint, read_saved, restore_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, EVAL, load_checkpoint, read_saved, restored_method
 
 FORMAT = "activeperc-policy"
+"""The ``format`` entry of a policy file."""
 WEIGHTS = Path(__file__).parent / "weights"
+"""The folder of the shipped policy files."""
 PRETRAINED = {
     "fov60": "activeperc-train --out runs/pretrained/fov60",
     "fov100": "activeperc-train --fov 100 --out runs/pretrained/fov100",
@@ -42,16 +44,15 @@ def pretrained(name: str = "fov60", device="cpu"):
 
 
 def save_policy(run: str | Path, path: str | Path, trained_by: str = "") -> dict:
-    """Write the deployed networks of the run directory ``run`` (its checkpoint) to ``path``, in half precision,
-    with the run's config, frames, final evaluation (``eval.json``, when there) and ``trained_by`` (the command
-    that trained it). Returns what it wrote, less the weights."""
+    """Write the deployed networks of ``run`` (a run directory or a checkpoint file) to ``path``, in half precision,
+    with the run's config, frames, final evaluation (``eval.json`` beside the checkpoint, when there) and
+    ``trained_by`` (the command that trained it). Returns what it wrote, less the weights."""
     run = Path(run)
-    state = load_checkpoint(run / CHECKPOINT)
-    config = TrainConfig.from_saved(state["config"])
-    method = make_method(config, torch.device("cpu"), start=False)
-    restore_method(method, state, run / CHECKPOINT)
+    file = run / CHECKPOINT if run.is_dir() else run
+    state = load_checkpoint(file)
+    config, method = restored_method(state, file, torch.device("cpu"))
     names = _policy_modules(method)
-    evaluation = run / EVAL
+    evaluation = file.parent / EVAL
     about = {
         "format": FORMAT,
         "config": config.to_dict(),
@@ -84,8 +85,12 @@ def read_policy_file(path: str | Path) -> dict:
 
 
 def policy_from_saved(saved: dict, path: str | Path, device="cpu"):
-    """``(config, mover_policy, looker)`` built from the contents of the policy file ``path``."""
-    config = TrainConfig.from_saved(saved["config"])
+    """``(config, mover_policy, looker)`` built from the contents of the policy file ``path``; ``ValueError`` naming
+    the file when they do not make one."""
+    try:
+        config = TrainConfig.from_saved(saved["config"])
+    except ValueError as error:
+        raise ValueError(f"policy file {str(path)!r} is unusable: {error}") from error
     method = make_method(config, torch_device(device), start=False)
     missing = set(_policy_modules(method)) - set(saved["modules"])
     if missing:
@@ -94,7 +99,9 @@ def policy_from_saved(saved: dict, path: str | Path, device="cpu"):
         if name not in method.modules:
             raise ValueError(f"policy file {str(path)!r} is unusable: {config.method} has no network {name!r}")
         try:
-            method.modules[name].load_state_dict({key: value.float() for key, value in state_dict.items()})
+            method.modules[name].load_state_dict(
+                {key: value.float() if value.is_floating_point() else value for key, value in state_dict.items()}
+            )
         except (AttributeError, RuntimeError, ValueError) as error:
             raise ValueError(f"policy file {str(path)!r} is unusable: its {name!r} does not fit its config") from error
     return (config, *method.policy())
@@ -102,16 +109,26 @@ def policy_from_saved(saved: dict, path: str | Path, device="cpu"):
 
 def is_policy(saved) -> bool:
     """Whether ``saved`` (what ``torch.load`` read) is the contents of a policy file."""
-    return isinstance(saved, dict) and saved.get("format") == FORMAT and isinstance(saved.get("modules"), dict)
+    return (
+        isinstance(saved, dict)
+        and saved.get("format") == FORMAT
+        and isinstance(saved.get("config"), dict)
+        and isinstance(saved.get("modules"), dict)
+        and all(isinstance(module, dict) for module in saved["modules"].values())
+    )
 
 
 def _policy_modules(method) -> list[str]:
     """The names of ``method``'s networks that its deployed policy runs: those whose every weight is one of the
-    policy's (the critic shares the actor's encoder, not its head)."""
+    policy's (the critic shares the actor's encoder, not its head). They hold every weight of the policy."""
     policy = [module for module in method.policy() if module is not None]
     weights = {id(p) for module in policy for p in module.parameters()}
-    return [
+    names = [
         name
         for name, module in method.modules.items()
         if all(id(p) in weights for p in module.parameters()) and any(True for _ in module.parameters())
     ]
+    held = {id(p) for name in names for p in method.modules[name].parameters()}
+    if held != weights:
+        raise ValueError(f"{type(method).__name__}'s policy shares weights with networks it does not run alone")
+    return names

@@ -25,6 +25,8 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
         ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
         ("looker_refit.py", ["RUN", "--lr", "0"], "--rooms, --cycles and --batch must be >= 1 and every --lr > 0"),
+        ("pretrained.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
+        ("pretrained.py", ["no-such-run"], "'no-such-run' holds no run"),
     ],
 )
 def test_a_bad_argument_is_named(script, args, message):

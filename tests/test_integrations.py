@@ -1,13 +1,11 @@
 """Other RL libraries on our envs, as docs/env.md shows them: Tianshou's multi-agent DQN on the AEC env,
 Stable-Baselines3's PPO through SuperSuit and RLlib's PPO on the image-only parallel env."""
 
-import gymnasium
 import numpy as np
 import pytest
 import ray
 import supersuit as ss
 import torch
-from pettingzoo.test import api_test, parallel_api_test
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
@@ -106,26 +104,9 @@ def test_tianshou_credits_the_looker_only_with_own_turn(looker_reward):
         assert totals[LOOKER] == 0.0
 
 
-def test_image_only_envs_pass_pettingzoo_api_tests_and_observe_the_image():
-    aec = activeperc_env.image_only(activeperc_env.env(max_cycles=20))
-    api_test(aec, num_cycles=30)
-    parallel = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20))
-    parallel_api_test(parallel, num_cycles=30)
-    plain = activeperc_env.parallel_env(max_cycles=20)
-    images, _ = parallel.reset(seed=3)
-    full, _ = plain.reset(seed=3)
-    for agent in plain.agents:
-        assert parallel.observation_space(agent) is parallel.observation_space(agent)
-        assert np.array_equal(images[agent], full[agent]["image"])
-    floats = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20), floats=True)
-    scaled, _ = floats.reset(seed=3)
-    assert floats.observation_space(MOVER).dtype == np.float32 and floats.observation_space(MOVER).contains(
-        scaled[MOVER]
-    )
-    assert np.array_equal(scaled[MOVER], full[MOVER]["image"].astype(np.float32) / 255)
-    ss.black_death_v3(parallel)  # SuperSuit's Box-only wrappers take it
-    with pytest.raises(TypeError, match="expected a PettingZoo AEC or parallel env"):
-        activeperc_env.image_only(gymnasium.make("activeperc/Joint-v3"))
+def test_supersuits_box_only_wrappers_take_the_image_only_env():
+    ss.black_death_v3(activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20)))
+    ss.agent_indicator_v0(activeperc_env.image_only(activeperc_env.env(max_cycles=20)))
 
 
 class RewardTotals(BaseCallback):
@@ -173,6 +154,7 @@ def test_rllib_trains_a_module_per_agent_and_both_receive_the_reward():
         .training(train_batch_size_per_learner=256, minibatch_size=64, num_epochs=1)
         .debugging(seed=0)
     )
+    ray.shutdown()  # an instance another test left running would refuse this one's settings
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         algo = config.build_algo()

@@ -360,3 +360,23 @@ def test_own_turn_gives_the_looker_its_reward_with_its_own_step(looker_reward, l
     assert by_last[MOVER] > 0.5, "the scripted mover should reach the goal"
     assert by_last[LOOKER] == (0.0 if looker_reward == "none" else by_last[MOVER])
     assert own_steps == {MOVER: by_last[MOVER], LOOKER: looker_share * by_last[MOVER]}
+
+
+def test_image_only_envs_pass_pettingzoo_api_tests_and_observe_the_image():
+    aec = activeperc_env.image_only(activeperc_env.env(max_cycles=20))
+    api_test(aec, num_cycles=30)
+    parallel = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20))
+    parallel_api_test(parallel, num_cycles=30)
+    plain = activeperc_env.parallel_env(max_cycles=20)
+    images, _ = parallel.reset(seed=3)
+    full, _ = plain.reset(seed=3)
+    for agent in plain.agents:
+        assert np.array_equal(images[agent], full[agent]["image"])
+    floats = activeperc_env.image_only(activeperc_env.parallel_env(max_cycles=20), floats=True)
+    scaled, _ = floats.reset(seed=3)
+    assert floats.observation_space(MOVER).dtype == np.float32 and floats.observation_space(MOVER).contains(
+        scaled[MOVER]
+    )
+    assert np.array_equal(scaled[MOVER], full[MOVER]["image"].astype(np.float32) / 255)
+    with pytest.raises(TypeError, match="expected a PettingZoo AEC or parallel env"):
+        activeperc_env.image_only(object())

@@ -29,12 +29,8 @@ def test_a_pretrained_policy_is_the_default_recipe_and_beats_random_play(name):
     held-out layouts reaches the goal far more often than random play (about 0.6 against 0.1 on 100)."""
     config, mover_policy, looker = activeperc_rl.pretrained(name)
     default = TrainConfig().replace(fov=float(name.removeprefix("fov")))
-    assert (config.method, config.options, config.env, config.network) == (
-        default.method,
-        default.options,
-        default.env,
-        default.network,
-    )
+    for part in ("method", "options", "a2c", "network", "env"):
+        assert getattr(config, part) == getattr(default, part), f"{name} was not trained by today's default {part}"
     learned = evaluate.evaluate(config, mover_policy, looker, episodes=16, seed=0)
     random_play = evaluate.evaluate(config, None, None, episodes=16, seed=0)
     assert learned["success_rate"] >= random_play["success_rate"] + 0.25, (learned, random_play)
@@ -84,13 +80,21 @@ def test_a_damaged_or_foreign_policy_file_is_refused_naming_it(tiny_run, tmp_pat
     data[middle : middle + 200] = bytes(b ^ 0xFF for b in data[middle : middle + 200])
     damaged = tmp_path / "damaged.pt"
     damaged.write_bytes(bytes(data))
-    with pytest.raises(ValueError, match="damaged.pt"):
+    with pytest.raises(ValueError, match="damaged.pt' is damaged"):
         load_policy_file(damaged)
     assert evaluate.main([str(damaged), "--episodes", "1"]) == 2
-    assert "damaged.pt" in capsys.readouterr().err
+    assert "damaged.pt' is damaged" in capsys.readouterr().err
     foreign = tmp_path / "foreign.pt"
     torch.save({"weights": torch.zeros(3)}, foreign)
     with pytest.raises(ValueError, match="not an activeperc policy file"):
         load_policy_file(foreign)
     with pytest.raises(ValueError, match="no policy file"):
         load_policy_file(tmp_path / "missing.pt")
+    saved = read_policy_file(path)
+    for name, broken in (
+        ("no_config", {k: v for k, v in saved.items() if k != "config"}),
+        ("bad_method", saved | {"config": saved["config"] | {"method": "nope"}}),
+    ):
+        torch.save(broken, tmp_path / f"{name}.pt")
+        assert evaluate.main([str(tmp_path / f"{name}.pt"), "--episodes", "1"]) == 2
+        assert f"{name}.pt" in capsys.readouterr().err

@@ -20,7 +20,7 @@ import yaml
 
 from activeperc_rl.config import load_yaml
 from activeperc_rl.method_base import Method
-from activeperc_rl.recipe import TrainConfig
+from activeperc_rl.recipe import TrainConfig, make_method
 from activeperc_rl.runtime.atomic import atomic_path
 
 CHECKPOINT = "checkpoint.pt"
@@ -67,7 +67,8 @@ def read_saved(path: str | Path, kind: str = "checkpoint", weights_only: bool = 
 
 
 def checked_checkpoint(state, path: str | Path, config: TrainConfig | None = None) -> dict:
-    """``state``, read from ``path``, once it is known to be a checkpoint (trained with ``config`` when given)."""
+    """``state``, read from ``path``, checked to be a checkpoint (trained with ``config`` when given); ``ValueError``
+    naming the file when it is not, or naming the options that differ from ``config``."""
     if not isinstance(state, dict) or "config" not in state or "method" not in state:
         raise ValueError(f"{str(path)!r} is not an activeperc checkpoint")
     if config is not None:
@@ -76,6 +77,15 @@ def checked_checkpoint(state, path: str | Path, config: TrainConfig | None = Non
         if differ:
             raise ValueError(f"checkpoint {str(path)!r} does not match the config: {'; '.join(differ)}")
     return state
+
+
+def restored_method(state: dict, path: str | Path, device: torch.device) -> tuple[TrainConfig, Method]:
+    """The config of the checkpoint ``state`` (read from ``path``) and its method on ``device``, the networks and
+    optimizers restored and the environments not started."""
+    config = TrainConfig.from_saved(state["config"])
+    method = make_method(config, device, start=False)
+    restore_method(method, state, path)
+    return config, method
 
 
 def restore_method(method: Method, state: dict, path: str | Path) -> None:
