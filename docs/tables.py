@@ -587,9 +587,11 @@ LOOKER_LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_succ
     "--looker-steps 4": "time_to_success_400k_looker_steps.csv",
     "--looker-steps 4 --e1-looks sample": "time_to_success_400k_looker_sample.csv",
     "--mirror-looks": "time_to_success_400k_mirror.csv",
+    "--epsilon 0.1": "time_to_success_400k_epsilon0.1.csv",
 }
 """The default recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2, the latter also with
-E1's looks drawn from ``phi1`` instead of its argmax; or with the looks valued as in a mirror too."""
+E1's looks drawn from ``phi1`` instead of its argmax; with the looks valued as in a mirror too; or with fewer random
+looks in E2."""
 LEVER_POINTS = (300_000, 400_000)
 REFIT = "experiments/results/looker_refit.csv"
 
