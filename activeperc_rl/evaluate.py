@@ -155,14 +155,11 @@ def load_policy(path: str | Path, device="cpu"):
     file = path / CHECKPOINT if path.is_dir() else path
     if not path.exists():
         raise ValueError(f"{str(path)!r} does not exist: give a run directory, a checkpoint or a policy file")
-    try:  # a policy file holds tensors and plain values alone, and is read as such
-        saved = read_saved(file, "policy file", weights_only=True)
-    except ValueError:  # a checkpoint holds more (random states): read it whole below, where a damaged file fails too
-        saved = None
+    kind = "checkpoint" if path.is_dir() else "checkpoint or policy file"
+    saved = read_saved(file, kind, weights_only=None)  # a policy file is read weights-only, a checkpoint in full
     if is_policy(saved):
         return policy_from_saved(saved, file, device)
-    state = checked_checkpoint(read_saved(file, "checkpoint" if path.is_dir() else "checkpoint or policy file"), file)
-    config, method = restored_method(state, file, torch_device(device))
+    config, method = restored_method(checked_checkpoint(saved, file), file, torch_device(device))
     return (config, *method.policy())
 
 

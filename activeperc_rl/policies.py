@@ -60,10 +60,7 @@ def save_policy(run: str | Path, path: str | Path, trained_by: str = "") -> dict
         "trained_by": trained_by,
         "eval": evaluation.read_text() if evaluation.is_file() else "",
     }
-    modules = {
-        name: {key: value.half() if value.is_floating_point() else value for key, value in state_dict.items()}
-        for name, state_dict in ((name, method.modules[name].state_dict()) for name in names)
-    }
+    modules = {name: _cast(method.modules[name].state_dict(), torch.float16) for name in names}
     with atomic_path(path) as temporary:
         torch.save(about | {"modules": modules}, temporary)
     return about | {"modules": names}
@@ -99,9 +96,7 @@ def policy_from_saved(saved: dict, path: str | Path, device="cpu"):
         if name not in method.modules:
             raise ValueError(f"policy file {str(path)!r} is unusable: {config.method} has no network {name!r}")
         try:
-            method.modules[name].load_state_dict(
-                {key: value.float() if value.is_floating_point() else value for key, value in state_dict.items()}
-            )
+            method.modules[name].load_state_dict(_cast(state_dict, torch.float32))
         except (AttributeError, RuntimeError, ValueError) as error:
             raise ValueError(f"policy file {str(path)!r} is unusable: its {name!r} does not fit its config") from error
     return (config, *method.policy())
@@ -116,6 +111,11 @@ def is_policy(saved) -> bool:
         and isinstance(saved.get("modules"), dict)
         and all(isinstance(module, dict) for module in saved["modules"].values())
     )
+
+
+def _cast(state_dict: dict, dtype: torch.dtype) -> dict:
+    """``state_dict`` with its floating-point tensors in ``dtype`` (the others as they are)."""
+    return {key: value.to(dtype) if value.is_floating_point() else value for key, value in state_dict.items()}
 
 
 def _policy_modules(method) -> list[str]:

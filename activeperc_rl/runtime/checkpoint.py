@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import pickle
 import sys
 import zipfile
 from pathlib import Path
@@ -49,21 +50,33 @@ def load_checkpoint(path: str | Path, config: TrainConfig | None = None) -> dict
     return checked_checkpoint(read_saved(path), path, config)
 
 
-def read_saved(path: str | Path, kind: str = "checkpoint", weights_only: bool = False):
-    """What ``torch.save`` wrote to ``path``; ``ValueError`` naming the file (a ``kind``) when it is missing,
-    unreadable or damaged (a part of it that does not match the CRC-32 checksum ``torch.save`` wrote for it)."""
+def read_saved(path: str | Path, kind: str = "checkpoint", weights_only: bool | None = False):
+    """What ``torch.save`` wrote to ``path``, read with torch's weights-only loader (``weights_only``), in full, or
+    (``None``) weights-only unless the file holds more than tensors and plain values (a checkpoint's random states);
+    ``ValueError`` naming the file (a ``kind``) when it is missing, unreadable or damaged (a part of it that does not
+    match the CRC-32 checksum ``torch.save`` wrote for it)."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"no {kind} at {str(path)!r}")
     try:
         with zipfile.ZipFile(path) as archive:  # torch.save's archive: a CRC-32 checksum of every part
             damaged = archive.testzip()
-        state = None if damaged else torch.load(path, map_location="cpu", weights_only=weights_only)
+        state = None if damaged else _torch_load(path, weights_only)
     except Exception as error:  # any unpickling failure means an unusable file
         raise ValueError(f"{kind} {str(path)!r} cannot be read: {error}") from error
     if damaged:
         raise ValueError(f"{kind} {str(path)!r} is damaged: its part {damaged!r} does not match its checksum")
     return state
+
+
+def _torch_load(path: Path, weights_only: bool | None):
+    """``torch.load`` on the CPU; ``weights_only=None`` tries the weights-only loader first."""
+    if weights_only is None:
+        try:
+            return torch.load(path, map_location="cpu", weights_only=True)
+        except pickle.UnpicklingError:  # more than tensors and plain values
+            weights_only = False
+    return torch.load(path, map_location="cpu", weights_only=weights_only)
 
 
 def checked_checkpoint(state, path: str | Path, config: TrainConfig | None = None) -> dict:
