@@ -454,26 +454,6 @@ def rooms_table(path: str) -> str:
     return markdown(["rooms N"] + [r["num_envs"] for r in rows], lines)
 
 
-def h100_train() -> str:
-    """Training frames/s on the H100 machine by number of rooms (collection's share of a `meta` iteration)."""
-    rows = read(f"{BENCH}/h100/train.csv")
-
-    def rate(value, share=""):
-        return f"{int(value):,}" + (f" ({share} %)" if share else "") if value else ""
-
-    lines = [
-        [
-            r["rooms"] + (" (the default)" if r["rooms"] == "16" else ""),
-            rate(r["meta_gpu"], r["meta_gpu_collect"]),
-            rate(r["fixed_forward_gpu"]),
-            rate(r["meta_cpu"], r["meta_cpu_collect"]),
-        ]
-        for r in rows
-    ]
-    header = ["rooms", "`meta`, networks on the GPU", "`fixed_forward`, GPU", "`meta`, networks on the CPU"]
-    return markdown(header, lines) + runs_footer(rows)
-
-
 # the folders of benchmarks/results/h200/, each the code it measured
 H200_RUNS = ("d7a6f27", "772515a", "7418c63", "21fc21d")
 
@@ -870,8 +850,6 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
         ),
     ),
     "env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/env_scaling.csv")),
-    "h100-env-scaling": ("performance.md", lambda: rooms_table(f"{BENCH}/h100/env_scaling.csv")),
-    "h100-train": ("performance.md", h100_train),
     "h200-warp-env": ("performance.md", h200_env),
     "h200-warp-train": ("performance.md", h200_train),
 }

@@ -28,6 +28,12 @@ share_the_cpus_among_workers()  # before torch starts its threads
 
 import activeperc_env  # noqa: E402, F401  (chooses the headless GL backend before mujoco renders)
 
+EASY_ROOM = dict(
+    num_obstacles=0, goal_distance=2.5, heading_spread=0.0, forward_speed=3.0, control_hz=2.5, max_cycles=10
+)
+"""An empty room where the goal lies straight ahead, two forward moves away: random moves reach it often (the other
+RL libraries' tests train there)."""
+
 
 def goal_seeking_move(sim, index: int = 0) -> int:
     """A scripted mover that knows where the goal is: turn towards it, then drive forward."""

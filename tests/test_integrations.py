@@ -6,6 +6,7 @@ import pytest
 import ray
 import supersuit as ss
 import torch
+from conftest import EASY_ROOM
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
@@ -23,11 +24,6 @@ from tianshou.utils.net.common import Net
 
 import activeperc_env
 from activeperc_env import LOOKER, MOVER
-
-# an empty room where the goal lies straight ahead, two forward moves away: random moves reach it often
-EASY_ROOM = dict(
-    num_obstacles=0, goal_distance=2.5, heading_spread=0.0, forward_speed=3.0, control_hz=2.5, max_cycles=10
-)
 
 
 class FlatNet(Net):
