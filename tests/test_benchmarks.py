@@ -5,6 +5,7 @@ import csv
 import importlib
 import importlib.util
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -121,6 +122,7 @@ def test_env_scaling_refuses_bad_values(env_scaling, capsys):
         ("portable_ops", ["--without", "NOTHING"], "invalid choice: 'NOTHING'"),
         ("warp_profile", ["--repeats", "0"], "repeats must be >= 1, got 0"),
         ("warp_profile", ["--device", "tpu"], "device='tpu' is invalid"),
+        ("compile_speed", ["--threads", "0"], "threads must be >= 1, got 0"),
     ],
 )
 def test_every_script_refuses_bad_values_before_timing(script, argv, error, capsys):
@@ -384,6 +386,15 @@ def test_view_profile_times_every_part_and_culls_without_changing_a_pixel():
 
 def table_lines(text: str) -> list[str]:
     return [line for line in text.splitlines() if line.startswith("|")]
+
+
+def test_compile_speed_times_both_batches_eager_and_compiled_in_every_round(capsys):
+    """A collection step's and an update's batch of the default recipe, each timed in both modes in each round."""
+    load_script("compile_speed").main(["--rounds", "2", "--seconds", "0.01", "--threads", "1"])
+    out = capsys.readouterr().out
+    assert "collection step (forward), batch 32:" in out and "update (forward, backward), batch 512:" in out
+    assert len(re.findall(r"^  eager [0-9.]+ ms, compiled [0-9.]+ ms a pass$", out, flags=re.MULTILINE)) == 4
+    assert len(re.findall(r"compiled / eager passes a second: [0-9.]+x \(rounds [0-9.]+x, [0-9.]+x\)", out)) == 2
 
 
 def test_portable_speed_trains_each_mode_alike_in_every_round(capsys):
