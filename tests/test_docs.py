@@ -17,16 +17,16 @@ TEXT = ENV_MD.read_text()
 
 def examples(text: str) -> list[tuple[str, str]]:
     """(the heading of its section, the code) of each Python example in a Markdown text."""
-    found, heading, code = [], "", None
+    found, heading, fence, code = [], "", None, ""
     for line in text.splitlines(keepends=True):
-        if code is not None:
-            if line.startswith("```"):
+        if fence is None and line.startswith("```"):
+            fence, code = line.strip(), ""
+        elif fence is not None and line.startswith("```"):
+            if fence == "```python":
                 found.append((heading, code))
-                code = None
-            else:
-                code += line
-        elif line.startswith("```python"):
-            code = ""
+            fence = None
+        elif fence is not None:
+            code += line
         elif line.startswith("#"):
             heading = line.lstrip("#").strip()
     return found
