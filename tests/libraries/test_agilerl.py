@@ -24,8 +24,9 @@ NET_CONFIG = {
 
 
 def channels_first(env):
-    """docs/env.md's wrapper: each agent's image alone, channels first (AgileRL's IPPO fails to learn from
-    channels-last images: its update normalises the transposed images by the untransposed bounds)."""
+    """docs/env.md's wrapper: each agent's image alone, channels first (AgileRL 2.58's IPPO update raises on
+    channels-last images: it scales the last observation, still channels last, by the space's bounds turned channels
+    first)."""
     return ss.observation_lambda_v0(
         activeperc_env.image_only(env),
         lambda image, space: image.transpose(2, 0, 1),
@@ -34,6 +35,7 @@ def channels_first(env):
 
 
 def easy_room():
+    """EASY_ROOM's parallel env as the AgileRL example wraps it."""
     return channels_first(activeperc_env.parallel_env(**EASY_ROOM))
 
 
