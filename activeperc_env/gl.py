@@ -131,6 +131,13 @@ class Context:
         if self._egl is not None:
             self._egl.restore(previous)
 
+    def usable(self) -> bool:
+        """Whether the context can still be made current: not in a fork of a process that had rendered, nor with EGL
+        once MuJoCo's exit handler has terminated the display (which destroyed every context on it)."""
+        if forked_after_gl():
+            return False
+        return self._egl is None or sys.modules["mujoco.egl"].EGL_DISPLAY is not None
+
     def free(self) -> None:
         """Destroy the context."""
         self.context.free()

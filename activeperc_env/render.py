@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from activeperc_env import names
-from activeperc_env.gl import forked_after_gl, gl_context
+from activeperc_env.gl import gl_context
 
 MAX_BUFFER = 4096  # largest offscreen side we ask of the GL driver
 MAP_SIZE = (320, 240)  # width, height of the bird's-eye map
@@ -260,10 +260,11 @@ class TiledRenderer:
         return pixels[::-1].copy()
 
     def close(self) -> None:
-        """Release the GL resources (none in a fork of a rendering process: what it inherited is left alone)."""
+        """Release the GL resources (none where the context is no longer usable: in a fork of a rendering process,
+        what it inherited is left alone; at exit, after MuJoCo terminated the EGL display, they are gone with it)."""
         if self._gl is None:
             return
-        if not forked_after_gl():
+        if self._gl.usable():
             context = getattr(self, "_ctx", None)  # missing when the constructor failed after the GL context
             if context is not None:
                 # MuJoCo frees the GL objects by their names in whatever context is current: make it ours, or

@@ -30,6 +30,33 @@ def test_a_stale_display_falls_back_to_egl():
     assert backend == "egl" and int(brightest) > 0
 
 
+CLOSE_AFTER_MUJOCOS_EXIT_HANDLER = """
+import activeperc_env
+import mujoco.egl
+env = activeperc_env.env()
+env.reset(seed=0)
+env.last()
+mujoco.egl._terminate_display()  # what MuJoCo's exit handler does, before a library's own exit handler closes envs
+env.close()
+print("closed")
+"""
+
+
+def test_an_env_closed_after_mujoco_terminated_the_egl_display_closes_quietly():
+    """Exit handlers run last-registered first, so one registered before the first render (Ray's, a user's) closes
+    its envs after MuJoCo's has terminated the EGL display; their contexts went with it, and closing says nothing."""
+    environment = os.environ | {"MUJOCO_GL": "egl"}
+    out = subprocess.run(
+        [sys.executable, "-c", CLOSE_AFTER_MUJOCOS_EXIT_HANDLER],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0 and out.stdout == "closed\n", out.stderr
+    assert "Exception" not in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+
 def test_without_a_display_or_egl_the_import_says_what_to_install(monkeypatch):
     monkeypatch.delenv("MUJOCO_GL", raising=False)
     monkeypatch.delenv("DISPLAY", raising=False)
