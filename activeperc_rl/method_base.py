@@ -22,7 +22,7 @@ from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import A2CConfig, RunConfig, Section
 from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import JointA2CLoss, SharedEncoderA2CLoss
-from activeperc_rl.models import JOINT, NUM_ACTIONS, NetworkConfig, make_actor, make_critic, make_encoder
+from activeperc_rl.models import JOINT, NUM_ACTIONS, NetworkConfig, make_actor, make_critic
 
 
 @dataclass
@@ -79,10 +79,7 @@ class Method:
     def _encoder(self, bearing: bool = True):
         """A fresh encoder (``bearing``: with the mover's bearing layout), built on the CPU (the same initial weights
         on every device); the networks around it move to the device."""
-        net = self.network
-        return make_encoder(
-            self.env, net.channels, net.hidden_size, net.bearing_bins if bearing else 0, net.frame_stack
-        )
+        return self.network.encoder(self.env, bearing)
 
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``); a look's entropy

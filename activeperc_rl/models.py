@@ -69,6 +69,11 @@ class NetworkConfig(Section):
             ),
         }
 
+    def encoder(self, env: EnvConfig, bearing: bool = True) -> Encoder:
+        """A fresh :class:`Encoder` of these sizes for ``env``'s observation (``bearing``: with the mover's bearing
+        layout)."""
+        return make_encoder(env, self.channels, self.hidden_size, self.bearing_bins if bearing else 0, self.frame_stack)
+
 
 class Encoder(nn.Module):
     """Conv stack over the uint8 image, concatenated with (sin, cos) of the pan and the range readings scaled to

@@ -19,15 +19,13 @@ import time
 import harness
 import torch
 
-from activeperc_rl.models import Head, make_encoder
+from activeperc_rl.models import NUM_ACTIONS, Head
 from activeperc_rl.recipe import TrainConfig
 
 
 def network(config: TrainConfig) -> Head:
     """The mover's actor network of the recipe ``config``: its encoder and a 3-way head."""
-    net = config.network
-    encoder = make_encoder(config.env, net.channels, net.hidden_size, net.bearing_bins, net.frame_stack)
-    return Head(encoder, net.hidden_size, 3)
+    return Head(config.network.encoder(config.env), config.network.hidden_size, NUM_ACTIONS)
 
 
 def views(config: TrainConfig, batch: int) -> tuple[torch.Tensor, ...]:
