@@ -138,18 +138,22 @@ class Method:
         name: str = "collector",
         room: dict | None = None,
         look_views: bool = False,
+        num_envs: int | None = None,
     ) -> Rollouts:
         """Rollouts ``[num_envs, rollout_length]`` of ``policy`` (and ``looker`` in the loop), collected in this process
         or by ``collect_workers`` workers (``name``: what their error messages call them), in the configured room
-        with the options in ``room`` changed."""
+        with the options in ``room`` changed (``num_envs``: rooms, if not the run's)."""
         run = self.run
+        num_envs = num_envs or run.num_envs
+        if run.collect_workers > num_envs:
+            raise ValueError(f"{name} has {num_envs} rooms, fewer than collect_workers={run.collect_workers}")
         # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
         entropy = [self.env_seed, len(self.collectors)]
         collector = Rollouts(
             policy,
             looker,
             dataclasses.replace(self.env, **(room or {})),
-            run.num_envs,
+            num_envs,
             run.rollout_length,
             env_seed=self.env_seed + seed_offset,
             torch_seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]),

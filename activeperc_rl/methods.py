@@ -30,7 +30,7 @@ from tensordict.nn import TensorDictSequential
 from torch import nn
 
 from activeperc_env.config import is_number, with_field_docs
-from activeperc_env.core import JOINT_ACTIONS
+from activeperc_env.core import JOINT_ACTIONS, MAX_ENVS
 from activeperc_rl.config import Section, finite, int_in
 from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import LOOKER_CREDITS, VIEW_CREDITS, MetaEvaluationLoss
@@ -120,6 +120,9 @@ class MetaConfig(LookerOptions):
     resample_d1: bool = True
     """Sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per iteration); False
     reuses the first D1 (2 rollouts per iteration)."""
+    e2_rooms: int = 0
+    """Rooms of E2 (0: as many as E1's ``num_envs``). Fewer give the mover more updates per frame and spend fewer
+    renders on E2's views of every look."""
     mover_rollouts: str = "all"
     """What the mover learns from: 'all' (the first D1 and D2, then the D1 sampled after the soft update) or 'd1'
     (the paper: that D1 only)."""
@@ -144,6 +147,7 @@ class MetaConfig(LookerOptions):
             "looker_steps": (int_in(self.looker_steps, 1, 1000), "an int in 1 .. 1000"),
             "shared_seeds": (isinstance(self.shared_seeds, bool), "true or false"),
             "resample_d1": (isinstance(self.resample_d1, bool), "true or false"),
+            "e2_rooms": (int_in(self.e2_rooms, 0, MAX_ENVS), f"an int in 0 .. {MAX_ENVS}"),
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
@@ -214,6 +218,7 @@ class Meta(_MoverA2C):
             seed_offset=e2_seed_offset,
             name="E2's collector",
             look_views=self.options.looker_credit in VIEW_CREDITS,
+            num_envs=self.options.e2_rooms or None,
         )
 
     def iterate(self) -> Iteration:

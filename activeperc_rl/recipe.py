@@ -264,5 +264,9 @@ def make_method(
     parts = {name: getattr(config, name) for name in SECTIONS}
     method = (cls or METHOD_CLASSES[config.method])(config.options, env=config.env, device=device, **parts)
     if start:
-        method.start()
+        try:
+            method.start()
+        except BaseException:
+            method.close()  # the collectors it had started
+            raise
     return method

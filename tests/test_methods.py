@@ -9,7 +9,7 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env import EnvConfig
-from activeperc_rl.methods import METHODS, finished_episodes, looker_transitions, soft_update, success_rate
+from activeperc_rl.methods import METHODS, Meta, finished_episodes, looker_transitions, soft_update, success_rate
 from activeperc_rl.models import (
     BearingLayout,
     EpsilonGreedyLooker,
@@ -243,6 +243,29 @@ def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
     assert {key.split("/")[0] for key in iteration.losses if key.endswith("/loss_objective")} == logged
     assert iteration.losses["meta/e1_pan_rate"] == 0.0  # E1 plays the untrained phi1's argmax: hold
     assert iteration.frames == (3 if resample_d1 else 2) * 2 * 4
+
+
+def test_meta_collects_e2_in_e2_rooms_and_counts_its_frames():
+    config = TrainConfig.from_options(num_envs=4, rollout_length=4, channels=(4,), hidden_size=8, e2_rooms=1)
+    method = make_method(config, torch.device("cpu"))
+    rooms, update = [], method._update_mover
+    method._update_mover = lambda rollout: rooms.append(rollout.shape[0]) or update(rollout)
+    try:
+        iteration = method.iterate()
+        d2 = method._next(method.e2)
+    finally:
+        method.close()
+    assert d2.shape == (1, 4) and rooms == [4 + 1, 4]
+    assert iteration.frames == (4 + 1 + 4) * 4
+
+
+def test_e2_with_fewer_rooms_than_workers_is_refused(monkeypatch):
+    config = TrainConfig.from_options(num_envs=4, collect_workers=2, channels=(4,), hidden_size=8, e2_rooms=1)
+    closed, close = [], Meta.close
+    monkeypatch.setattr(Meta, "close", lambda self: closed.append(len(self.collectors)) or close(self))
+    with pytest.raises(ValueError, match=r"E2's collector has 1 rooms, fewer than collect_workers=2"):
+        make_method(config, torch.device("cpu"))
+    assert closed == [1]  # E1's workers, started first, were shut down
 
 
 @pytest.mark.parametrize("looker_steps", [1, 3])
