@@ -9,6 +9,7 @@ Training options after ``--`` are ``activeperc-train``'s flags::
 
     python benchmarks/time_to_success.py --seeds 0 1 2 3 4 --csv benchmarks/results/cpu2/time_to_success.csv
     python benchmarks/time_to_success.py --seeds 0 --every 100000 -- --frames 300000 --num-envs 32
+    taskset -c 1 python benchmarks/time_to_success.py --seeds 3 4 --csv F  # beside --seeds 0 1 2 on core 0
     python benchmarks/time_to_success.py --no-train --csv benchmarks/results/cpu2/time_to_success.csv \\
         --figure docs/figures/time_to_success.png
 """
@@ -17,7 +18,9 @@ from __future__ import annotations
 
 import argparse
 import csv
+import fcntl
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -72,6 +75,20 @@ def measured(config, out: Path, frames: int, episodes: int) -> dict:
         "machine": portable.machine(),
         "date": time.strftime("%Y-%m-%d"),
     }
+
+
+def add_row(path: Path, row: dict) -> list[dict]:
+    """Add ``row`` to the CSV at ``path`` and return all its rows: under a lock on its folder, with the rows that
+    other runs of the benchmark (other seeds, one core each) wrote there meanwhile."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    folder = os.open(path.parent, os.O_RDONLY)
+    try:
+        fcntl.flock(folder, fcntl.LOCK_EX)
+        rows = read_rows(path) + [row]
+        harness.write_csv(path, COLUMNS, [tuple(r[c] for c in COLUMNS) for r in rows])
+    finally:
+        os.close(folder)  # (and the lock with it)
+    return rows
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -179,8 +196,7 @@ def main(argv: list[str] | None = None) -> int:
                 mine = [int(r["frames"]) for r in rows if (r["method"], str(r["seed"])) == (method, str(seed))]
                 if any(reached >= frames for reached in mine):
                     continue  # measured before, or passed by the iteration that reached the step before
-                rows.append(measured(run, out, frames, args.episodes))
-                harness.write_csv(args.csv, COLUMNS, [tuple(r[c] for c in COLUMNS) for r in rows])
+                rows = add_row(args.csv, measured(run, out, frames, args.episodes))
                 print(f"{method} seed {seed} at {frames:,} frames: {rows[-1]['success_rate']}", flush=True)
     print(report(rows, methods))
     plot(rows, methods, figure)

@@ -587,6 +587,17 @@ def test_time_to_success_scores_each_step_over_seeds_and_resumes_where_it_stoppe
     assert "activeperc-train:" not in capsys.readouterr().out and (tmp_path / "drawn.png").stat().st_size > 0
 
 
+def test_time_to_success_keeps_the_rows_another_run_wrote_to_its_csv(tmp_path):
+    """Two runs of the benchmark (other seeds, one core each) share a CSV: each row is added to what is there."""
+    tts = load_script("time_to_success")
+    row = dict.fromkeys(tts.COLUMNS, "x")
+    path = tmp_path / "new" / "tts.csv"
+    assert tts.add_row(path, row | {"seed": "0"}) == [row | {"seed": "0"}]
+    other = tts.add_row(path, row | {"seed": "1"})  # the other run's, written after this one read the CSV
+    assert tts.add_row(path, row | {"seed": "2"}) == [*other, row | {"seed": "2"}]
+    assert [r["seed"] for r in tts.read_rows(path)] == ["0", "1", "2"]
+
+
 def test_time_to_success_stops_when_a_stop_signal_ends_a_step_early(tmp_path, monkeypatch):
     """Training saves its checkpoint and returns early on Ctrl-C or SIGTERM: the benchmark stops there, scoring
     nothing."""
