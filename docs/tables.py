@@ -562,16 +562,19 @@ MANY_ROOMS = {  # as RECIPE_OPTIONS: benchmarks/gpu_learning.sh's first setting 
 """The recipe for many rooms (a GPU's), tried first on the CPU: 256 rooms x 8 cycles a rollout, 2,048 frames an
 update (32 x 8: 256)."""
 
-LOOKER_LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py (meta)
+LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py (meta)
     "--looker-lr 0.001": "time_to_success_400k_looker_lr.csv",
     "--looker-steps 4": "time_to_success_400k_looker_steps.csv",
     "--looker-steps 4 --e1-looks sample": "time_to_success_400k_looker_sample.csv",
     "--mirror-looks": "time_to_success_400k_mirror.csv",
     "--epsilon 0.1": "time_to_success_400k_epsilon0.1.csv",
+    "--no-resample-d1": "time_to_success_400k_no_resample.csv",
+    "--e2-rooms 16": "time_to_success_400k_e2_rooms16.csv",
+    "--e2-rooms 8": "time_to_success_400k_e2_rooms8.csv",
 }
 """The default recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2, the latter also with
-E1's looks drawn from ``phi1`` instead of its argmax; with the looks valued as in a mirror too; or with fewer random
-looks in E2."""
+E1's looks drawn from ``phi1`` instead of its argmax; with the looks valued as in a mirror too; with fewer random
+looks in E2; and three that give the mover more updates a frame: one D1 an iteration, or E2 in fewer rooms than E1."""
 LEVER_POINTS = (300_000, 400_000)
 REFIT = "experiments/results/looker_refit.csv"
 
@@ -584,32 +587,37 @@ def recipe_options() -> str:
     return recipe_table(RECIPE_OPTIONS, RECIPE_PAIRS)
 
 
-def looker_levers() -> str:
-    """Each of :data:`LOOKER_LEVERS`: held-out success at :data:`LEVER_POINTS`, mean ± 95 % interval over its seeds,
-    and its paired difference to the 400k recipe at the last of them."""
+def recipe_levers() -> str:
+    """Each of :data:`LEVERS`: held-out success at :data:`LEVER_POINTS`, mean ± 95 % interval over its seeds, its
+    paired difference to the 400k recipe at the last of them, and its CSV (one command for all, with each row's seeds,
+    CSV and flags)."""
     base, method = DEFAULT_CURVES, "meta"
-    runs = {
-        flags: [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
-        for flags, name in ({"": base} | LOOKER_LEVERS).items()
-    }
+    names = {"": base} | LEVERS
+    runs = {flags: [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method] for flags, name in names.items()}
     success = {
         flags: {(r["seed"], step(int(r["frames"]))): float(r["success_rate"]) for r in rows}
         for flags, rows in runs.items()
     }
     last = LEVER_POINTS[-1]
-    lines, commands = [], []
+    lines, where = [], {}
     for flags, points in success.items():
-        seeds = sorted({seed for seed, _ in points})
+        seeds = sorted({seed for seed, _ in points}, key=int)
+        if seeds != [str(s) for s in range(len(seeds))]:
+            raise ValueError(f"{names[flags]}: seeds {seeds}, not 0 to {len(seeds) - 1}")
         cells = [spread(points[seed, at] for seed in seeds) for at in LEVER_POINTS]
-        if not flags:
-            lines.append(["none (the default's runs above)", str(len(seeds)), *cells, ""])
-            continue
         paired = mean_ci([points[seed, last] - success[""][seed, last] for seed in seeds])
-        lines.append([f"`{flags}`", str(len(seeds)), *cells, spread_of(*paired, "+.2f")])
-        command = time_to_success_command(seeds, STEP, LOOKER_LEVERS[flags], flags)
-        commands += [{"command": command} | r for r in runs[flags]]
+        name = f"`{flags}`" if flags else "none (the default)"
+        difference = spread_of(*paired, "+.2f") if flags else ""
+        lines.append([name, f"0-{seeds[-1]}", *cells, difference, f"`{names[flags]}`"])
+        where.update({(r["machine"], r["date"]): None for r in runs[flags]})
     header = ["flags added", "seeds", *(f"{at:,} frames" for at in LEVER_POINTS), f"difference at {last:,}, by seed"]
-    return markdown(header, lines) + runs_footer(commands).removesuffix(".\n") + "; one core each, two at a time.\n"
+    header.append("CSV")
+    command = time_to_success_command(["SEEDS"], STEP, "CSV", "FLAGS")
+    dates: dict[str, list[str]] = {}
+    for machine, date in where:
+        dates.setdefault(machine, []).append(date)
+    machines = "; ".join(f"{machine}, {' and '.join(days)}" for machine, days in dates.items())
+    return markdown(header, lines) + f"\nCommand: `{command}` ({machines}); one core each, two at a time.\n"
 
 
 def many_rooms() -> str:
@@ -841,7 +849,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
     "looker-refit": ("performance.md", looker_refit),
-    "looker-levers": ("performance.md", looker_levers),
+    "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
         "performance.md",
