@@ -5,6 +5,7 @@ Run from the repository root::
     python experiments/scripted_looker_training.py --looker track --frames 300000 --seed 0
     python experiments/scripted_looker_training.py --looker fixed --frames 300000 --seed 0   # Fixed_Forward
     python experiments/scripted_looker_training.py --looker scan --version 2 --bearing-bins 30
+    python experiments/scripted_looker_training.py --looker scan --bearing-bins 30 --recipe default --frames 400000
 
 The mover is ``fixed_forward``'s (the TrainConfig defaults, A2C on the default room), but its environment runs a
 scripted looker of :data:`activeperc_env.scripted.LOOKERS` inside each cycle (``fixed``: the camera held forward,
@@ -72,18 +73,24 @@ def probe_arguments(prog: str, description: str, looker: str) -> ArgumentParser:
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes (200)")
     parser.add_argument("--version", type=int, choices=ROOMS, default=EnvConfig().version, help="room version")
     parser.add_argument("--bearing-bins", type=whole_number, default=0, help="the mover's bearing layout (0: none)")
+    parser.add_argument(
+        "--recipe",
+        choices=("probe", "default"),
+        default="probe",
+        help="run shape and learning rate schedule: the committed probes' (16 rooms x 16 cycles, constant; the"
+        " default) or activeperc-train's defaults",
+    )
     return parser
 
 
 def probe_config(args) -> TrainConfig:
     """``fixed_forward``'s config with the probe's budget, seed, room and bearing layout, at the run shape and learning
-    rate schedule its committed results ran with (16 rooms x 16 cycles, constant)."""
+    rate schedule of ``--recipe``: its committed results' (16 rooms x 16 cycles, constant) or today's defaults."""
+    shape = dict(num_envs=16, rollout_length=16, lr_schedule="constant") if args.recipe == "probe" else {}
     return TrainConfig.from_options(
         method="fixed_forward",
         frames=args.frames,
-        num_envs=16,
-        rollout_length=16,
-        lr_schedule="constant",
+        **shape,
         seed=args.seed,
         bearing_bins=args.bearing_bins,
         env={"version": args.version},
@@ -111,7 +118,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         method.close()
     minutes = round((time.perf_counter() - start) / 60, 1)
-    run = {"looker": args.looker, "version": args.version, "bearing_bins": args.bearing_bins, "frames": frames}
+    run = {"looker": args.looker, "version": args.version, "bearing_bins": args.bearing_bins, "recipe": args.recipe}
+    run["frames"] = frames
     print(json.dumps(run | {"seed": args.seed, "eval": result, "minutes": minutes}))
     return 0
 

@@ -52,7 +52,7 @@ def test_tile_shading_compares_every_tile_with_one_room():
 def test_a_mover_trains_with_a_scripted_looker_in_its_loop():
     done = subprocess.run(
         [sys.executable, str(EXPERIMENTS / "scripted_looker_training.py"), "--looker", "scan", "--frames", "512",
-         "--episodes", "2"],
+         "--episodes", "2", "--recipe", "default", "--bearing-bins", "30"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -60,6 +60,7 @@ def test_a_mover_trains_with_a_scripted_looker_in_its_loop():
 
     result = json.loads(done.stdout.strip().splitlines()[-1])
     assert result["looker"] == "scan" and result["frames"] >= 512 and result["eval"]["episodes"] == 2
+    assert (result["recipe"], result["bearing_bins"]) == ("default", 30)
 
 
 def test_a_mover_with_memory_trains_with_a_scripted_looker_in_its_loop():
