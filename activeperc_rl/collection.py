@@ -138,7 +138,7 @@ class Rollouts:
         if collector not in COLLECTORS:
             raise ValueError(f"collector={collector!r} is invalid: expected one of {COLLECTORS}")
         if not isinstance(workers, int) or not 0 <= workers <= num_envs:
-            raise ValueError(f"workers={workers!r} is invalid: expected an int in 0 .. num_envs={num_envs}")
+            raise ValueError(f"{name}: workers={workers!r} is invalid: expected an int in 0 .. its {num_envs} rooms")
         if collector == "ray" and workers and num_envs % workers:
             raise ValueError(f"num_envs={num_envs} does not split evenly over {workers} Ray workers")
         if collector == "ray" and workers and importlib.util.find_spec("ray") is None:

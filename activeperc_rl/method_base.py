@@ -145,8 +145,6 @@ class Method:
         with the options in ``room`` changed (``num_envs``: rooms, if not the run's)."""
         run = self.run
         num_envs = num_envs or run.num_envs
-        if run.collect_workers > num_envs:
-            raise ValueError(f"{name} has {num_envs} rooms, fewer than collect_workers={run.collect_workers}")
         # the workers' torch streams: from the run's seed (or the resumed run's env_seed) and the collector's index
         entropy = [self.env_seed, len(self.collectors)]
         collector = Rollouts(

@@ -263,7 +263,8 @@ def test_e2_with_fewer_rooms_than_workers_is_refused(monkeypatch):
     config = TrainConfig.from_options(num_envs=4, collect_workers=2, channels=(4,), hidden_size=8, e2_rooms=1)
     closed, close = [], Meta.close
     monkeypatch.setattr(Meta, "close", lambda self: closed.append(len(self.collectors)) or close(self))
-    with pytest.raises(ValueError, match=r"E2's collector has 1 rooms, fewer than collect_workers=2"):
+    refused = r"E2's collector: workers=2 is invalid: expected an int in 0 \.\. its 1 rooms"
+    with pytest.raises(ValueError, match=refused):
         make_method(config, torch.device("cpu"))
     assert closed == [1]  # E1's workers, started first, were shut down
 
