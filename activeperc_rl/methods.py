@@ -121,8 +121,7 @@ class MetaConfig(LookerOptions):
     """Sample D1 again after the soft update for the A2C step, as the paper does (3 rollouts per iteration); False
     reuses the first D1 (2 rollouts per iteration)."""
     e2_rooms: int = 0
-    """Rooms of E2 (0: as many as E1's ``num_envs``). Fewer give the mover more A2C steps a frame, which did not
-    raise held-out success at 400,000 frames (docs/performance.md)."""
+    """Rooms of E2 (0: as many as E1's ``num_envs``); fewer give the mover more A2C steps a frame."""
     mover_rollouts: str = "all"
     """What the mover learns from: 'all' (the first D1 and D2, then the D1 sampled after the soft update) or 'd1'
     (the paper: that D1 only)."""
