@@ -118,8 +118,13 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         method.close()
     minutes = round((time.perf_counter() - start) / 60, 1)
-    run = {"looker": args.looker, "version": args.version, "bearing_bins": args.bearing_bins, "recipe": args.recipe}
-    run["frames"] = frames
+    run = {
+        "looker": args.looker,
+        "version": args.version,
+        "bearing_bins": args.bearing_bins,
+        "recipe": args.recipe,
+        "frames": frames,
+    }
     print(json.dumps(run | {"seed": args.seed, "eval": result, "minutes": minutes}))
     return 0
 
