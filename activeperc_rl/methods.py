@@ -131,6 +131,9 @@ class MetaConfig(LookerOptions):
     looker_importance_weights: bool = False
     """Weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it (the paper
     does not)."""
+    looker_bearing: bool = False
+    """Build phi2 (and phi1) on an encoder with the mover's bearing layout (``bearing_bins``), not on the view's
+    columns."""
     mirror_looks: bool = False
     """With the 'best_look' and 'every_look' credits, value each look's view as the mean of the critic's value of it
     and of its mirror image: what the look is worth to a mover as able on either side of the room."""
@@ -150,6 +153,7 @@ class MetaConfig(LookerOptions):
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
+            "looker_bearing": (isinstance(self.looker_bearing, bool), "true or false"),
             "mirror_looks": (
                 self.mirror_looks is False or (self.mirror_looks is True and self.looker_credit in VIEW_CREDITS),
                 f"true or false; true values every look: looker_credit one of {VIEW_CREDITS}",
@@ -187,7 +191,7 @@ class Meta(_MoverA2C):
 
     def __init__(self, options: MetaConfig, **parts):
         super().__init__(options, **parts)
-        self.phi2 = make_actor(self._encoder(bearing=False), self.network.hidden_size, LOOKER).to(self.device)
+        self.phi2 = make_actor(self._encoder(options.looker_bearing), self.network.hidden_size, LOOKER).to(self.device)
         start_holding(self.phi2, options.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)

@@ -259,6 +259,22 @@ def test_meta_collects_e2_in_e2_rooms_and_counts_its_frames():
     assert iteration.frames == (4 + 1 + 4) * 4
 
 
+@pytest.mark.parametrize("looker_bearing", [False, True])
+def test_meta_builds_phi1_and_phi2_on_the_bearing_layout_with_looker_bearing(looker_bearing):
+    config = TrainConfig.from_options(
+        num_envs=2, rollout_length=2, channels=(4,), hidden_size=8, bearing_bins=6, looker_bearing=looker_bearing
+    )
+    method = make_method(config, torch.device("cpu"))
+    try:
+        method.iterate()
+        layouts = [module.layout for module in method.modules["phi2"].modules() if hasattr(module, "layout")]
+        phi1 = [module.layout for module in method.modules["phi1"].modules() if hasattr(module, "layout")]
+    finally:
+        method.close()
+    assert [layout is not None and layout.bearings.numel() for layout in layouts] == [looker_bearing and 6]
+    assert [layout is not None for layout in phi1] == [looker_bearing]
+
+
 def test_e2_with_fewer_rooms_than_workers_is_refused(monkeypatch):
     config = TrainConfig.from_options(num_envs=4, collect_workers=2, channels=(4,), hidden_size=8, e2_rooms=1)
     closed, close = [], Meta.close
