@@ -112,6 +112,12 @@ class TrainConfig:
             object.__setattr__(self, ENV, EnvConfig.from_kwargs(**(self.env or {})))
         elif not isinstance(self.env, EnvConfig):
             raise ValueError(f"TrainConfig.env={self.env!r} is invalid: expected a mapping of environment options")
+        e2_rooms, workers = getattr(self.options, "e2_rooms", 0), self.run.collect_workers
+        if 0 < e2_rooms < workers:
+            raise ValueError(
+                f"meta.e2_rooms={e2_rooms} is invalid: expected 0 or at least run.collect_workers={workers} (each of "
+                "E2's workers steps one room or more)"
+            )
 
     @classmethod
     def from_options(cls, **options) -> TrainConfig:

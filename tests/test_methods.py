@@ -275,12 +275,25 @@ def test_meta_builds_phi1_and_phi2_on_the_bearing_layout_with_looker_bearing(loo
     assert [layout is not None for layout in phi1] == [looker_bearing]
 
 
-def test_e2_with_fewer_rooms_than_workers_is_refused(monkeypatch):
-    config = TrainConfig.from_options(num_envs=4, collect_workers=2, channels=(4,), hidden_size=8, e2_rooms=1)
-    closed, close = [], Meta.close
-    monkeypatch.setattr(Meta, "close", lambda self: closed.append(len(self.collectors)) or close(self))
-    refused = r"E2's collector: workers=2 is invalid: expected an int in 0 \.\. its 1 rooms"
+def test_e2_with_fewer_rooms_than_workers_is_refused():
+    refused = r"meta.e2_rooms=1 is invalid: expected 0 or at least run.collect_workers=2"
     with pytest.raises(ValueError, match=refused):
+        TrainConfig.from_options(num_envs=4, collect_workers=2, e2_rooms=1)
+    assert TrainConfig.from_options(num_envs=4, collect_workers=2, e2_rooms=2).options.e2_rooms == 2
+
+
+def test_a_failed_start_shuts_down_the_collectors_it_had_opened(monkeypatch):
+    config = TrainConfig.from_options(num_envs=4, collect_workers=2, channels=(4,), hidden_size=8)
+    closed, close, collector = [], Meta.close, Meta._collector
+    monkeypatch.setattr(Meta, "close", lambda self: closed.append(len(self.collectors)) or close(self))
+
+    def failing_e2(self, *args, name="collector", **kwargs):
+        if name == "E2's collector":
+            raise ValueError("E2 refused")
+        return collector(self, *args, name=name, **kwargs)
+
+    monkeypatch.setattr(Meta, "_collector", failing_e2)
+    with pytest.raises(ValueError, match="E2 refused"):
         make_method(config, torch.device("cpu"))
     assert closed == [1]  # E1's workers, started first, were shut down
 
