@@ -39,8 +39,10 @@ from activeperc_rl.models import (
     HOLD,
     JOINT,
     NUM_ACTIONS,
+    Encoder,
     EpsilonGreedyLooker,
     FixedLooker,
+    ReadOnlyEncoder,
     make_actor,
     make_joint_policy,
     start_holding,
@@ -49,6 +51,7 @@ from activeperc_rl.models import (
 MOVER_ROLLOUTS = ("d1", "all")
 E1_LOOKS = ("greedy", "sample")
 OPTIMIZERS = ("adam", "sgd")
+LOOKER_ENCODERS = ("own", "own_bearing", "mover")
 
 
 @with_field_docs
@@ -131,9 +134,10 @@ class MetaConfig(LookerOptions):
     looker_importance_weights: bool = False
     """Weight each look's REINFORCE term by pi_phi2 / b, b the epsilon-greedy behaviour that drew it (the paper
     does not)."""
-    looker_bearing: bool = False
-    """Build phi2 (and phi1) on an encoder with the mover's bearing layout (``bearing_bins``), not on the view's
-    columns."""
+    looker_encoder: str = "own"
+    """What phi2 (and phi1) read the looker's view with: 'own' (an encoder of their own, on the view's columns),
+    'own_bearing' (their own, with the mover's bearing layout) or 'mover' (the mover's encoder, without gradient:
+    only their output layer learns)."""
     mirror_looks: bool = False
     """With the 'best_look' and 'every_look' credits, value each look's view as the mean of the critic's value of it
     and of its mirror image: what the look is worth to a mover as able on either side of the room."""
@@ -153,7 +157,7 @@ class MetaConfig(LookerOptions):
             "mover_rollouts": (self.mover_rollouts in MOVER_ROLLOUTS, f"one of {MOVER_ROLLOUTS}"),
             "e1_looks": (self.e1_looks in E1_LOOKS, f"one of {E1_LOOKS}"),
             "looker_importance_weights": (isinstance(self.looker_importance_weights, bool), "true or false"),
-            "looker_bearing": (isinstance(self.looker_bearing, bool), "true or false"),
+            "looker_encoder": (self.looker_encoder in LOOKER_ENCODERS, f"one of {LOOKER_ENCODERS}"),
             "mirror_looks": (
                 self.mirror_looks is False or (self.mirror_looks is True and self.looker_credit in VIEW_CREDITS),
                 f"true or false; true values every look: looker_credit one of {VIEW_CREDITS}",
@@ -191,7 +195,7 @@ class Meta(_MoverA2C):
 
     def __init__(self, options: MetaConfig, **parts):
         super().__init__(options, **parts)
-        self.phi2 = make_actor(self._encoder(options.looker_bearing), self.network.hidden_size, LOOKER).to(self.device)
+        self.phi2 = make_actor(self._looker_encoder(), self.network.hidden_size, LOOKER).to(self.device)
         start_holding(self.phi2, options.looker_hold_prob)
         self.phi1 = copy.deepcopy(self.phi2)
         self.phi1.requires_grad_(False)
@@ -210,6 +214,12 @@ class Meta(_MoverA2C):
         )
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
         self._optimizer("looker", [self.phi2], options.looker_lr, options.looker_optimizer)
+
+    def _looker_encoder(self) -> nn.Module:
+        """phi2's encoder (``looker_encoder``)."""
+        if self.options.looker_encoder == "mover":
+            return ReadOnlyEncoder(next(m for m in self.actor.modules() if isinstance(m, Encoder)))
+        return self._encoder(bearing=self.options.looker_encoder == "own_bearing")
 
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""

@@ -228,6 +228,25 @@ class Head(nn.Module):
         return self.out(self.encoder(image, pan, ranges))
 
 
+class ReadOnlyEncoder(nn.Module):
+    """Another network's :class:`Encoder`, read without gradient: a head on it learns from its features and leaves its
+    weights alone (they are not this module's parameters, nor in its state dict)."""
+
+    def __init__(self, encoder: Encoder):
+        super().__init__()
+        self.__dict__["source"] = encoder  # not a submodule
+        self.range_rays = encoder.range_rays
+
+    def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
+        """The source encoder's features, without gradient."""
+        with torch.no_grad():
+            return self.source(image, pan, ranges)
+
+    def __deepcopy__(self, memo: dict) -> ReadOnlyEncoder:
+        """A copy reads the same encoder."""
+        return ReadOnlyEncoder(self.source)
+
+
 def make_encoder(
     env: EnvConfig, channels: tuple[int, ...], hidden_size: int, bearing_bins: int = 0, frames: int = 1
 ) -> Encoder:

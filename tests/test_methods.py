@@ -12,8 +12,10 @@ from activeperc_env import EnvConfig
 from activeperc_rl.methods import METHODS, Meta, finished_episodes, looker_transitions, soft_update, success_rate
 from activeperc_rl.models import (
     BearingLayout,
+    Encoder,
     EpsilonGreedyLooker,
     FixedLooker,
+    ReadOnlyEncoder,
     SplitJoint,
     make_actor,
     make_encoder,
@@ -259,20 +261,40 @@ def test_meta_collects_e2_in_e2_rooms_and_counts_its_frames():
     assert iteration.frames == (4 + 1 + 4) * 4
 
 
-@pytest.mark.parametrize("looker_bearing", [False, True])
-def test_meta_builds_phi1_and_phi2_on_the_bearing_layout_with_looker_bearing(looker_bearing):
+def _encoders(module) -> list:
+    return [m for m in module.modules() if isinstance(m, (Encoder, ReadOnlyEncoder))]
+
+
+@pytest.mark.parametrize(("looker_encoder", "bins"), [("own", None), ("own_bearing", 6)])
+def test_meta_builds_phi1_and_phi2_on_their_own_encoder_with_or_without_the_bearing_layout(looker_encoder, bins):
     config = TrainConfig.from_options(
-        num_envs=2, rollout_length=2, channels=(4,), hidden_size=8, bearing_bins=6, looker_bearing=looker_bearing
+        num_envs=2, rollout_length=2, channels=(4,), hidden_size=8, bearing_bins=6, looker_encoder=looker_encoder
     )
+    method = make_method(config, torch.device("cpu"), start=False)
+    for name in ("phi1", "phi2"):
+        (encoder,) = _encoders(method.modules[name])
+        assert isinstance(encoder, Encoder) and encoder is not _encoders(method.actor)[0]
+        assert (encoder.layout and encoder.layout.bearings.numel()) == bins
+
+
+def test_meta_with_the_mover_s_encoder_trains_only_the_looker_s_output_layer():
+    config = TrainConfig.from_options(
+        num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_encoder="mover", mover_rollouts="d1",
+        resample_d1=False,
+    )  # fmt: skip
     method = make_method(config, torch.device("cpu"))
+    (mover_encoder,) = _encoders(method.actor)
     try:
-        method.iterate()
-        layouts = [module.layout for module in method.modules["phi2"].modules() if hasattr(module, "layout")]
-        phi1 = [module.layout for module in method.modules["phi1"].modules() if hasattr(module, "layout")]
+        before = {k: v.clone() for k, v in mover_encoder.state_dict().items()}
+        heads = [dict(method.modules[name].named_parameters()) for name in ("phi1", "phi2")]
+        d1, d2 = method._next(method.e1), method._next(method.e2)
+        method._step("looker", method.meta_loss, d2, d1)
     finally:
         method.close()
-    assert [layout is not None and layout.bearings.numel() for layout in layouts] == [looker_bearing and 6]
-    assert [layout is not None for layout in phi1] == [looker_bearing]
+    assert [_encoders(method.modules[name])[0].source for name in ("phi1", "phi2")] == [mover_encoder] * 2
+    assert all(set(head) == {"module.0.module.out.weight", "module.0.module.out.bias"} for head in heads)
+    assert all(torch.equal(before[k], v) for k, v in mover_encoder.state_dict().items())
+    assert heads[1]["module.0.module.out.weight"].abs().sum() > 0  # phi2's layer learned (it starts at zero)
 
 
 def test_e2_with_fewer_rooms_than_workers_is_refused():

@@ -493,7 +493,7 @@ def test_bad_flags_are_named(tmp_path, capsys):
         ("channels", 16), ("channels", ()), ("frames", True), ("shared_seeds", "no"), ("checkpoint_every", None),
         ("lr", float("inf")), ("max_grad_norm", float("nan")), ("entropy_coeff", float("inf")), ("seed", 2**63),
         ("rollout_length", 1), ("collect_workers", 33), ("frame_stack", 0), ("frame_stack", 17), ("looker_steps", 0),
-        ("e2_rooms", -1), ("e2_rooms", 2**16 + 1), ("looker_bearing", 1),
+        ("e2_rooms", -1), ("e2_rooms", 2**16 + 1), ("looker_encoder", "mover_bearing"),
         # sizes that failed deep in torch, mujoco or deque
         ("num_envs", 10**18), ("rollout_length", 10**18), ("hidden_size", 10**18), ("channels", (16, 10**18)),
         ("success_window", 10**19), ("torch_threads", 10**18), ("learner_threads", 10**18),
