@@ -11,8 +11,8 @@ every cycle the views of all three looks are drawn (``make_env(look_views=True)`
 each: ``Q(u) = V(s'(u))``. The looks are grouped by where the goal is in the looker's view ``s_bar`` (not in view,
 in the left or right third, in the middle third), and for each group the script prints how many looks it holds,
 the mean of ``Q(pan left) - Q(hold)`` and ``Q(pan right) - Q(hold)``, how often each pan is the best look, and how
-often the run's ``phi2`` (``meta``) picks each look greedily. A critic that values looking says: pan where the goal
-is out of view or off centre, hold where it is centred.
+often the run's ``phi2`` (``meta``) picks each look greedily, with its mean probability of each. A critic that values
+looking says: pan where the goal is out of view or off centre, hold where it is centred.
 """
 
 from __future__ import annotations
@@ -108,15 +108,17 @@ def main(argv: list[str] | None = None) -> int:
     values = look_values(method.critic, record)
     gain = (values - values[:, HOLD : HOLD + 1]).numpy()
     groups = goal_groups(latest_view(record["observation", "image"]).numpy(), config.env.fov)
-    greedy = None
+    greedy = probs = None
     phi2 = method.modules.get("phi2")
     if phi2 is not None:
         inputs = TensorDict({(LOOKER, "observation"): record["observation"]}, batch_size=record.batch_size)
         with torch.no_grad():
-            greedy = phi2[0](inputs)[LOOKER, "logits"].argmax(-1).numpy()
+            logits = phi2[0](inputs)[LOOKER, "logits"]
+            greedy, probs = logits.argmax(-1).numpy(), logits.softmax(-1).numpy()
     print(f"{args.run}: {config.method}, {len(record)} looks of {args.rooms} held-out rooms, epsilon {args.epsilon}")
     print(
         "goal in s_bar  | looks | Q(left)-Q(hold) Q(right)-Q(hold) | best: left  right | phi2 greedy: left hold right"
+        " | phi2 mean p: left hold right"
     )
     for index, name in enumerate(GROUPS):
         rows = groups == index
@@ -125,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         left, right = gain[rows, 0], gain[rows, 2]
         best = f"{np.mean(left > np.maximum(right, 0)):.2f}  {np.mean(right > np.maximum(left, 0)):.2f}"
         picks = " ".join(f"{np.mean(greedy[rows] == u):.2f}" for u in range(3)) if greedy is not None else "-"
+        picks += " | " + (" ".join(f"{p:.2f}" for p in probs[rows].mean(0)) if probs is not None else "-")
         print(f"{name:14s} | {rows.sum():5d} | {left.mean():+15.4f} {right.mean():+16.4f} | {best:>17s} | {picks}")
     return 0
 
