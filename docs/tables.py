@@ -576,7 +576,7 @@ LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py 
 as in a mirror too; with fewer random looks in E2; with E2 in fewer rooms than E1, which gives the mover more updates
 a frame; and with ``phi2`` reading its view through the bearing layout, or through the mover's encoder."""
 LEVER_POINTS = (300_000, 400_000)
-REFIT = "experiments/results/looker_refit.csv"
+SWAP = "experiments/results/looker_swap.csv"
 
 STEP = 100_000
 """The frames between two scores of the recipe tables' runs (``--every``): a point is named by the step it passed."""
@@ -625,18 +625,19 @@ def many_rooms() -> str:
     return recipe_table(MANY_ROOMS, [])
 
 
-def looker_refit() -> str:
-    """How often a ``meta`` run's looker, and copies of it refitted on fresh labels, pick the critic's best look
-    (``experiments/looker_refit.py``): mean ± 95 % interval over the runs."""
-    rows = read(REFIT)
-    lookers = list(dict.fromkeys((r["looker"], r["steps"], r["lr"]) for r in rows))
+def looker_swap() -> str:
+    """The default's movers scored with lookers that mix ``phi1`` with the tracking looker
+    (``experiments/looker_swap.py``): mean ± 95 % interval over the runs, and the paired difference to ``phi1``."""
+    rows = read(SWAP)
+    runs = list(dict.fromkeys(r["run"] for r in rows))
+    success = {(r["run"], r["looker"]): float(r["success_rate"]) for r in rows}
     lines = []
-    for looker, steps, lr in lookers:
-        mine = [r for r in rows if (r["looker"], r["steps"], r["lr"]) == (looker, steps, lr)]
-        name = f"`{looker}`" + (f" refitted, {steps} Adam steps at lr {float(lr):g}" if lr else ", as trained")
-        lines.append([name, spread(r["agreement"] for r in mine), spread(r["agreement_pan"] for r in mine)])
-    command = f"python experiments/looker_refit.py {braced(list(dict.fromkeys(r['run'] for r in rows)))} --csv {REFIT}"
-    header = ["looker", "greedy look = label", "where a pan gains > 0.03"]
+    for looker in dict.fromkeys(r["looker"] for r in rows):
+        paired = [success[run, looker] - success[run, "phi1"] for run in runs]
+        own = spread(success[run, looker] for run in runs)
+        lines.append([looker, own, spread_of(*mean_ci(paired), "+.2f") if looker != "phi1" else ""])
+    command = f"python experiments/looker_swap.py {braced(runs)} --csv {SWAP}"
+    header = ["looker", "held-out success", "difference to `phi1`, by run"]
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
@@ -848,7 +849,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
-    "looker-refit": ("performance.md", looker_refit),
+    "looker-swap": ("performance.md", looker_swap),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (

@@ -25,6 +25,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
         ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
         ("looker_refit.py", ["RUN", "--lr", "0"], "--rooms, --cycles and --batch must be >= 1 and every --lr > 0"),
+        ("looker_swap.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
         ("pretrained.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
         ("pretrained.py", ["no-such-run"], "'no-such-run' holds no run"),
     ],
@@ -123,6 +124,26 @@ def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
     greedy, probs = lines[2].split("|")[-2:]
     assert lines[2].startswith("not in view") and greedy.split() == ["0.00", "1.00", "0.00"]  # untrained phi2 holds
     assert float(probs.split()[1]) > 0.9 and math.isclose(sum(map(float, probs.split())), 1, abs_tol=0.015)
+
+
+def test_looker_swap_scores_a_meta_runs_mover_with_each_looker(tmp_path):
+    import csv
+
+    from activeperc_rl import cli
+
+    out, table = tmp_path / "run", tmp_path / "swap.csv"
+    tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
+    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--out", str(out)]) == 0
+    done = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "looker_swap.py"), str(out), "--episodes", "4", "--csv", str(table)],
+        capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    rows = list(csv.DictReader(open(table)))
+    lookers = ["phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track"]
+    assert [r["looker"] for r in rows] == lookers and all(r["episodes"] == "4" for r in rows)
+    assert all(0 <= float(r["success_rate"]) <= 1 for r in rows)
+    assert len(done.stdout.splitlines()) == 1 + len(lookers)
 
 
 def test_looker_refit_scores_a_meta_runs_lookers_and_refitted_copies(tmp_path):

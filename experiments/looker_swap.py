@@ -1,0 +1,101 @@
+"""Which part of a ``meta`` run's looker costs its mover success? The run's mover scored with lookers that mix its
+``phi1`` with the scripted tracking looker.
+
+Run from the repository root::
+
+    python experiments/looker_swap.py runs/meta-seed0-TIME
+    python experiments/looker_swap.py RUN... --episodes 200 --csv swap.csv
+
+Each run's mover plays ``--episodes`` held-out episodes (as ``activeperc-eval`` does) with four lookers: its own
+(``phi1``, as at test time); ``phi1`` while the goal is in the looker's view and a random pan while it is not;
+:class:`~activeperc_env.scripted.TrackLooker`'s look (centre the goal) while it is in view and ``phi1``'s while it
+is not; and the tracking looker alone. The mover was trained beside its own looker, so a looker that beats it here
+does so for a mover that never learned with it.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import sys
+
+import numpy as np
+import torch
+from scripted_looker_training import ScriptedLooker
+from torch import nn
+
+from activeperc_env.arguments import ArgumentParser, whole_number
+from activeperc_env.scripted import goal_in_view
+from activeperc_rl.envs import LOOKER, latest_view
+from activeperc_rl.evaluate import MAX_ROOMS, evaluate
+from activeperc_rl.recipe import make_method
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
+
+LOOKERS = ("phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track")
+COLUMNS = ["run", "looker", "episodes", "success_rate", "mean_return", "machine", "date"]
+
+
+class InViewOrNot(nn.Module):
+    """Writes ``in_view``'s look where the goal is in the looker's view ``s_bar`` and ``out_of_view``'s elsewhere."""
+
+    def __init__(self, in_view: nn.Module, out_of_view: nn.Module, fov: float):
+        super().__init__()
+        self.in_view, self.out_of_view, self.fov = in_view, out_of_view, fov
+
+    def forward(self, tensordict):
+        """Write the looks of every room into ``tensordict``."""
+        looks = [module(tensordict.copy()).get((LOOKER, "action")) for module in (self.in_view, self.out_of_view)]
+        image = latest_view(tensordict.get((LOOKER, "observation", "image"))).cpu().numpy()
+        bearing, _ = goal_in_view(image, self.fov)
+        seen = torch.as_tensor(~np.isnan(bearing), device=looks[0].device)
+        tensordict.set((LOOKER, "action"), torch.where(seen, *looks))
+        return tensordict
+
+
+def rows_of_run(run: str, episodes: int, seed: int) -> list[dict]:
+    """The run's mover scored with each of :data:`LOOKERS`."""
+    config = load_run_config(run)
+    if config.method != "meta":
+        raise SystemExit(f"looker_swap: {run} is a {config.method} run; it needs a meta run")
+    method = make_method(config, torch.device("cpu"), start=False)
+    restore_method(method, load_checkpoint(f"{run}/{CHECKPOINT}"), run)
+    mover, phi1 = method.policy()
+    track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
+    fov = config.env.fov
+    lookers = (phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track)
+    rows = []
+    for name, looker in zip(LOOKERS, lookers, strict=True):
+        score = evaluate(config, mover, looker, episodes=episodes, seed=seed)
+        rows.append({"run": run, "looker": name} | {key: score[key] for key in COLUMNS[2:5]})
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Score every run's mover with each looker, print the rows (and write them with ``--csv``)."""
+    parser = ArgumentParser(prog="looker_swap.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", help="meta run directories (holding checkpoint.pt)")
+    parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes a looker (200)")
+    parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
+    parser.add_argument("--csv", help="also write the rows here")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    where = {"machine": portable.machine(), "date": datetime.date.today().isoformat()}
+    print(" | ".join(COLUMNS))
+    rows = []
+    for run in args.runs:
+        for row in rows_of_run(run, args.episodes, args.seed):
+            rows.append(row | where)
+            print(" | ".join(str(rows[-1][column]) for column in COLUMNS), flush=True)
+    if args.csv:
+        with atomic_path(args.csv) as path, open(path, "w", newline="") as file:
+            writer = csv.DictWriter(file, COLUMNS, lineterminator="\n")
+            writer.writeheader()
+            writer.writerows(rows)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
