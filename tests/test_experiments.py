@@ -133,7 +133,7 @@ def test_looker_swap_scores_a_meta_runs_mover_with_each_looker(tmp_path):
 
     out, table = tmp_path / "run", tmp_path / "swap.csv"
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
-    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--out", str(out)]) == 0
+    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "10", "--out", str(out)]) == 0
     done = subprocess.run(
         [sys.executable, str(EXPERIMENTS / "looker_swap.py"), str(out), "--episodes", "4", "--csv", str(table)],
         capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
