@@ -22,7 +22,7 @@ from pathlib import Path
 from statistics import fmean
 
 from activeperc_env.arguments import ArgumentParser, whole_number
-from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.atomic import write_csv
 
 COLUMNS = (
     "run",
@@ -85,10 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     for row in rows:
         print(" | ".join(cell(row[column], 2) for column in COLUMNS))
     if args.csv:
-        with atomic_path(args.csv) as path, open(path, "w", newline="") as file:
-            writer = csv.DictWriter(file, COLUMNS)
-            writer.writeheader()
-            writer.writerows({column: cell(row[column], 4) for column in COLUMNS} for row in rows)
+        write_csv(args.csv, COLUMNS, ({column: cell(row[column], 4) for column in COLUMNS} for row in rows))
     return 0
 
 

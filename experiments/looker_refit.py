@@ -19,7 +19,6 @@ the run's own ``phi2`` says the labels are predictable from the view and the run
 from __future__ import annotations
 
 import copy
-import csv
 import datetime
 import sys
 
@@ -35,7 +34,7 @@ from activeperc_rl.losses import best_looks
 from activeperc_rl.models import EpsilonGreedyLooker
 from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
-from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 
 COLUMNS = (
@@ -135,10 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     for row in rows:
         print(" | ".join(str(row[column]) for column in COLUMNS), flush=True)
     if args.csv:
-        with atomic_path(args.csv) as path, open(path, "w", newline="") as file:
-            writer = csv.DictWriter(file, COLUMNS)
-            writer.writeheader()
-            writer.writerows(rows)
+        write_csv(args.csv, COLUMNS, rows)
     return 0
 
 

@@ -15,7 +15,6 @@ does so for a mover that never learned with it.
 
 from __future__ import annotations
 
-import csv
 import datetime
 import sys
 
@@ -30,7 +29,7 @@ from activeperc_rl.envs import LOOKER, latest_view
 from activeperc_rl.evaluate import MAX_ROOMS, evaluate
 from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
-from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 
 LOOKERS = ("phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track")
@@ -90,10 +89,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row | where)
             print(" | ".join(str(rows[-1][column]) for column in COLUMNS), flush=True)
     if args.csv:
-        with atomic_path(args.csv) as path, open(path, "w", newline="") as file:
-            writer = csv.DictWriter(file, COLUMNS, lineterminator="\n")
-            writer.writeheader()
-            writer.writerows(rows)
+        write_csv(args.csv, COLUMNS, rows)
     return 0
 
 

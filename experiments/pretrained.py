@@ -10,7 +10,6 @@ looker, the same mover with the camera held forward, and random play. Run from t
 
 from __future__ import annotations
 
-import csv
 import datetime
 import json
 import os
@@ -23,7 +22,7 @@ from activeperc_rl.models import FixedLooker
 from activeperc_rl.policies import PRETRAINED, WEIGHTS, load_policy_file, save_policy
 from activeperc_rl.recipe import TrainConfig
 from activeperc_rl.runtime import portable
-from activeperc_rl.runtime.atomic import atomic_path
+from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import load_run_config
 
 COLUMNS = ("policy", "frames", "learned", "camera_held", "random", "run_learned", "episodes", "trained_by")
@@ -87,10 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     for row in rows:
         print(json.dumps({key: row[key] for key in COLUMNS[:6]}))
     if args.csv:
-        with atomic_path(args.csv) as temporary, open(temporary, "w", newline="") as file:
-            writer = csv.DictWriter(file, COLUMNS, lineterminator="\n")
-            writer.writeheader()
-            writer.writerows(rows)
+        write_csv(args.csv, COLUMNS, rows)
     return 0
 
 

@@ -57,3 +57,11 @@ def test_check_writable_tries_the_folder_rather_than_trusting_its_permissions(tm
     assert list(tmp_path.iterdir()) == []  # the probe is gone
     with pytest.raises(ValueError, match=r"cannot write '/proc/v\.mp4': .* in '/proc'"):
         check_writable("/proc/v.mp4")  # root may write /proc by its permissions
+
+
+def test_write_csv_writes_the_header_and_rows_with_newline_ends(tmp_path):
+    from activeperc_rl.runtime.atomic import write_csv
+
+    path = tmp_path / "results" / "rows.csv"
+    write_csv(path, ["run", "success"], [{"run": "a", "success": 0.5}, {"run": "b, c", "success": 1}])
+    assert path.read_bytes() == b'run,success\na,0.5\n"b, c",1\n'

@@ -9,6 +9,7 @@ TensorBoard's own.
 
 from __future__ import annotations
 
+import csv
 import glob
 import os
 import tempfile
@@ -45,6 +46,15 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         if isinstance(error, OSError) and error.errno and error.filename in (None, str(temporary)):  # a write: no name
             raise _naming(error, path) from error
         raise
+
+
+def write_csv(path: str | Path, columns: list[str], rows) -> None:
+    """Write the mappings ``rows`` under the header ``columns`` to the CSV file ``path`` (atomically, ``\n`` line
+    ends)."""
+    with atomic_path(path) as temporary, open(temporary, "w", newline="") as file:
+        writer = csv.DictWriter(file, columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
 
 
 def _naming(error: OSError, path: Path) -> OSError:

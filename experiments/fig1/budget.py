@@ -13,7 +13,6 @@ root::
 
 from __future__ import annotations
 
-import csv
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -26,7 +25,7 @@ import sweep  # noqa: E402
 from activeperc_env.arguments import ArgumentParser, whole_number  # noqa: E402
 from activeperc_rl.config import load_yaml  # noqa: E402
 from activeperc_rl.recipe import TrainConfig, make_method  # noqa: E402
-from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
+from activeperc_rl.runtime.atomic import write_csv  # noqa: E402
 
 PER = 1_000_000
 """The environment frames every count is scaled to."""
@@ -98,10 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({"method": task.method} | count_updates(config, args.iterations))
         print(" ".join(f"{key}={rows[-1][key]}" for key in COLUMNS), flush=True)
     if args.csv:
-        with atomic_path(args.csv) as temporary, open(temporary, "w", newline="") as file:
-            writer = csv.DictWriter(file, COLUMNS, lineterminator="\n")
-            writer.writeheader()
-            writer.writerows(rows)
+        write_csv(args.csv, COLUMNS, rows)
         print(f"wrote {args.csv}")
     return 0
 
