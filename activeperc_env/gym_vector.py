@@ -145,8 +145,9 @@ class _SingleAgentVectorEnv(VectorEnv):
         return tuple(self.sim.render_map(i) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs) -> None:
-        """Release the renderer."""
-        self.sim.close()
+        """Release the renderer (none where the constructor refused its arguments before building it)."""
+        if "sim" in self.__dict__:
+            self.sim.close()
 
     def _observe(self) -> dict:
         return self.sim.observe()

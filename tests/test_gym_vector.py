@@ -159,6 +159,18 @@ def test_bad_input_is_named():
         gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, fov=500)
 
 
+def test_a_refused_vector_env_is_collected_without_an_error(monkeypatch):
+    import gc
+    import sys
+
+    unraised = []
+    monkeypatch.setattr(sys, "unraisablehook", unraised.append)
+    with pytest.raises(ValueError, match="autoreset_mode='sometimes' is invalid"):
+        activeperc_env.JointVectorEnv(num_envs=2, autoreset_mode="sometimes")
+    gc.collect()  # gymnasium's VectorEnv.__del__ closes the half-built env
+    assert [str(u.exc_value) for u in unraised] == []
+
+
 def test_step_or_render_before_reset_is_refused():
     vec = gymnasium.make_vec("activeperc/Joint-v1", num_envs=2, render_mode="rgb_array")
     with pytest.raises(gymnasium.error.ResetNeeded, match="step\\(\\) before reset"):
