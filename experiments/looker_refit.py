@@ -32,10 +32,9 @@ from activeperc_env.core import HOLD
 from activeperc_rl.envs import LOOKER, make_env
 from activeperc_rl.losses import best_looks
 from activeperc_rl.models import EpsilonGreedyLooker
-from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import write_csv
-from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restored_method
 
 COLUMNS = (
     "run", "looker", "steps", "lr", "cycles", "agreement", "agreement_pan", "pan_cycles", "cross_entropy", "machine",
@@ -96,11 +95,9 @@ def refit(phi2, record, labels: torch.Tensor, steps: int, lr: float, batch: int)
 
 def rows_of_run(run: str, args) -> list[dict]:
     """Every looker's scores on ``run``'s held-out cycles."""
-    config = load_run_config(run)
+    config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
     if config.method != "meta":
         raise SystemExit(f"looker_refit: {run} is a {config.method} run; it needs a meta run")
-    method = make_method(config, torch.device("cpu"), start=False)
-    restore_method(method, load_checkpoint(f"{run}/{CHECKPOINT}"), run)
     train = labelled_looks(method, config, args.rooms, args.cycles, "train", args.seed)
     test = labelled_looks(method, config, args.rooms, args.cycles, "eval", args.seed)
     rows = [

@@ -27,10 +27,9 @@ from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.scripted import goal_in_view
 from activeperc_rl.envs import LOOKER, latest_view
 from activeperc_rl.evaluate import MAX_ROOMS, evaluate
-from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import write_csv
-from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
+from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restored_method
 
 LOOKERS = ("phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track")
 COLUMNS = ["run", "looker", "episodes", "success_rate", "mean_return", "machine", "date"]
@@ -55,11 +54,9 @@ class InViewOrNot(nn.Module):
 
 def rows_of_run(run: str, episodes: int, seed: int) -> list[dict]:
     """The run's mover scored with each of :data:`LOOKERS`."""
-    config = load_run_config(run)
+    config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
     if config.method != "meta":
         raise SystemExit(f"looker_swap: {run} is a {config.method} run; it needs a meta run")
-    method = make_method(config, torch.device("cpu"), start=False)
-    restore_method(method, load_checkpoint(f"{run}/{CHECKPOINT}"), run)
     mover, phi1 = method.policy()
     track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
     fov = config.env.fov
