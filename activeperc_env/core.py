@@ -362,29 +362,31 @@ class Simulator:
         nothing, so in a cycle the looker's view ``s_bar`` is drawn for every room and the mover's ``s'``
         only for the rooms whose camera turned.
         """
+        every = ids is None
         ids = self._as_ids(ids)
         self.require_started("render()", ids)
         per_pass = self.renderer.views_per_pass
-        tiles = np.arange(len(ids)) % per_pass  # where each view is drawn in the offscreen buffer
+        # where each view is drawn in the offscreen buffer; every room: the rows, in one pass where they fit
+        every = every and self.num_envs <= per_pass
+        rows, tiles = (slice(None), ids) if every else (ids, np.arange(len(ids)) % per_pass)
         if self._views is None:
             cfg = self.config
             self._views = np.zeros((self.num_envs, cfg.height, cfg.width, 3), dtype=np.uint8)
         # the rasteriser rounds a view a little differently in another tile: a view is reused only where
         # it was drawn in the tile this call would draw it in, and a stale one is drawn again in that tile
-        stale = self._tiles[ids] != tiles
+        stale = self._tiles[rows] != tiles
         if stale.any():
             if stale.all() or len(ids) > per_pass or len(np.unique(ids)) < len(ids):
-                stale[:] = True
-                self._views[ids] = self.renderer.render(self._qpos[ids], self._mocap_pos[ids])
+                self._views[rows] = self.renderer.render(self._qpos[rows], self._mocap_pos[rows])
+                self._tiles[ids] = tiles
             else:
                 redraw = ids[stale]
-                self._views[redraw] = self.renderer.render(
-                    self._qpos[redraw], self._mocap_pos[redraw], tiles=tiles[stale]
-                )
-            self._tiles[ids[stale]] = tiles[stale]
+                views = self.renderer.render(self._qpos[redraw], self._mocap_pos[redraw], tiles=tiles[stale])
+                self._views[redraw] = views
+                self._tiles[redraw] = tiles[stale]
         if out is None:
-            return self._views[ids]  # a copy: callers may keep or change it
-        out[...] = self._views[ids]
+            return self._views[rows].copy()  # callers may keep or change it
+        out[...] = self._views[rows]
         return out
 
     def device_views(self, ids=None):

@@ -164,9 +164,12 @@ class _Egl:
         self._display, self._context = lib.eglGetCurrentDisplay(), lib.eglGetCurrentContext()
         self.restore(previous)
 
-    def _current(self) -> tuple:
-        """The display, draw and read surfaces and context current in the calling thread."""
+    def _current(self) -> tuple | None:
+        """The display, draw and read surfaces and context current in the calling thread; ``None`` when no context
+        is (one call, the common case)."""
         lib = self._lib
+        if not lib.eglGetCurrentContext():
+            return None
         return (
             lib.eglGetCurrentDisplay(),
             lib.eglGetCurrentSurface(self.DRAW),
@@ -174,19 +177,19 @@ class _Egl:
             lib.eglGetCurrentContext(),
         )
 
-    def make_current(self) -> tuple:
-        """Make the context current; returns the display, surfaces and context current before."""
+    def make_current(self) -> tuple | None:
+        """Make the context current; returns the display, surfaces and context current before (``None``: no
+        context, as a rule)."""
         previous = self._current()
         self._switch(self._display, None, None, self._context)
         return previous
 
-    def restore(self, previous: tuple) -> None:
+    def restore(self, previous: tuple | None) -> None:
         """Make ``previous`` (from :meth:`make_current`) current again, or no context when there was none."""
-        display, draw, read, context = previous
-        if context:
-            self._switch(display, draw, read, context)
-        else:
+        if previous is None:
             self._switch(self._display, None, None, None)
+        else:
+            self._switch(*previous)
 
     def _switch(self, display, draw, read, context) -> None:
         if not self._lib.eglMakeCurrent(display, draw, read, context):
