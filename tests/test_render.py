@@ -144,7 +144,7 @@ def test_a_fork_of_a_rendering_process_fails_clearly_instead_of_hanging(parent):
 
 
 def test_llvmpipe_without_threads_draws_the_same_pixels(tmp_path):
-    """docs/performance.md suggests LP_NUM_THREADS=0 for single-room use on a CPU: it must not change a pixel."""
+    """activeperc_env sets LP_NUM_THREADS=0; docs/performance.md suggests threads for large batches: same pixels."""
     script = (
         "import sys, numpy as np\n"
         "from activeperc_env import Simulator\n"
