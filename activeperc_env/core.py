@@ -126,6 +126,8 @@ class Simulator:
         # the latest range readings of every room, and which are still those of the base's pose (a look leaves them)
         self._ranges = np.zeros((num_envs, self.config.range_rays), dtype=np.float32)
         self._ranged = np.zeros(num_envs, dtype=bool)
+        self._occluders_used = list(self._ids.occluders[: self.config.num_obstacles])  # their rows of mocap_pos
+        self._layers_on = tuple(name for name in LAYERS if getattr(self.config, name))  # observed besides the image
         self._renderer: TiledRenderer | WarpRenderer | None = None
         self._views: np.ndarray | None = None  # the latest first-person view of every room
         # the tile of the offscreen buffer each view in _views was drawn in; -1 once the room has changed
@@ -409,9 +411,8 @@ class Simulator:
         others = {"pan": self.pan(ids)}
         if self.config.range_rays:
             others["range"] = self.ranges(ids)
-        layers = tuple(name for name in LAYERS if getattr(self.config, name))
-        if layers:
-            others |= self._layers(layers, ids)
+        if self._layers_on:
+            others |= self._layers(self._layers_on, ids)
         image = self.device_views(ids) if device_images else self.render(ids)  # last: a pass after it would redraw
         return {"image": image, **others}
 
@@ -442,7 +443,7 @@ class Simulator:
         stale = ids[~self._ranged[ids]]
         if stale.size:
             qpos, mocap = self._qpos[stale], self._mocap_pos[stale]
-            occluders = mocap[:, list(self._ids.occluders[: self.config.num_obstacles]), :2]
+            occluders = mocap[:, self._occluders_used, :2]
             self._ranges[stale] = sensors.cast(
                 self._base.xy(qpos), self._base.heading(qpos), occluders, self._ray_angles, self.config.range_max
             )
@@ -466,7 +467,7 @@ class Simulator:
         self.require_started("state()", ids)
         qpos, mocap = self._qpos[ids], self._mocap_pos[ids]
         heading = self._base.heading(qpos)
-        occluders = mocap[:, list(self._ids.occluders[: self.config.num_obstacles]), :2].reshape(len(ids), -1)
+        occluders = mocap[:, self._occluders_used, :2].reshape(len(ids), -1)
         columns = [
             self._base.xy(qpos),
             np.cos(heading)[:, None],
