@@ -40,16 +40,14 @@ class TiledRenderer:
         self.width, self.height, self.fov = width, height, fov
         self.cols = max(1, min(max_views, MAX_BUFFER // width))
         self.rows = max(1, min(math.ceil(max_views / self.cols), MAX_BUFFER // height))
-        buf_w = max(self.cols * width, MAP_SIZE[0])
-        buf_h = max(self.rows * height, MAP_SIZE[1])
-        model.vis.global_.offwidth = buf_w
-        model.vis.global_.offheight = buf_h
+        # the buffer holds the tiles alone: llvmpipe draws a view that fills its buffer (one room's) a tenth faster
+        buf_w, buf_h = self.cols * width, self.rows * height
         self._model = model
         self._gl = None
         self._gl = gl_context(buf_w, buf_h)
         with self._current():
-            self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
+            self._ctx = _offscreen_context(model, buf_w, buf_h)
+        self._map_ctx: mujoco.MjrContext | None = None  # the maps' buffer, made at the first map
         self._scene = mujoco.MjvScene(model, maxgeom=200)
         for flag in (
             mujoco.mjtRndFlag.mjRND_SHADOW,
@@ -264,8 +262,14 @@ class TiledRenderer:
         rect = mujoco.MjrRect(0, 0, width, height)
         pixels = np.empty((height, width, 3), dtype=np.uint8)
         with self._current():
-            mujoco.mjr_render(rect, self._scene, self._ctx)
-            mujoco.mjr_readPixels(pixels, None, rect, self._ctx)
+            if self._map_ctx is None:
+                self._map_ctx = _offscreen_context(self._model, width, height)
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._map_ctx)
+            try:
+                mujoco.mjr_render(rect, self._scene, self._map_ctx)
+                mujoco.mjr_readPixels(pixels, None, rect, self._map_ctx)
+            finally:
+                mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
         return pixels[::-1].copy()
 
     def close(self) -> None:
@@ -274,12 +278,14 @@ class TiledRenderer:
         if self._gl is None:
             return
         if self._gl.usable():
-            context = getattr(self, "_ctx", None)  # missing when the constructor failed after the GL context
-            if context is not None:
+            # missing when the constructor failed after the GL context
+            contexts = [c for c in (getattr(self, "_ctx", None), getattr(self, "_map_ctx", None)) if c is not None]
+            if contexts:
                 # MuJoCo frees the GL objects by their names in whatever context is current: make it ours, or
                 # another renderer's framebuffer and textures of the same names are deleted and it draws wrong views
                 with self._current():
-                    context.free()
+                    for context in contexts:
+                        context.free()
             self._gl.free()
         self._gl = None
 
@@ -340,6 +346,20 @@ def side_by_side(map_image: np.ndarray, view: np.ndarray) -> np.ndarray:
     canvas[: map_image.shape[0], : map_image.shape[1]] = map_image
     canvas[: big.shape[0], map_image.shape[1] : width] = big
     return canvas
+
+
+def _offscreen_context(model: mujoco.MjModel, width: int, height: int) -> mujoco.MjrContext:
+    """A MuJoCo render context of ``model`` in the current GL context, drawing into an offscreen buffer of ``width``
+    x ``height`` pixels (the model's own buffer size is left as it was)."""
+    visual = model.vis.global_
+    size = visual.offwidth, visual.offheight
+    visual.offwidth, visual.offheight = width, height
+    try:
+        context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+    finally:
+        visual.offwidth, visual.offheight = size
+    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
+    return context
 
 
 def _fixed_camera(model: mujoco.MjModel, name: str) -> mujoco.MjvCamera:
