@@ -22,6 +22,23 @@ def test_tiled_views_equal_single_views():
         assert_same_view(many.render(ids=[i])[0], tiled[i])
 
 
+def test_a_map_drawn_between_views_changes_no_pixel():
+    """The maps have a buffer of their own: a map drawn before, between or after views leaves every view and map as
+    it is drawn alone."""
+    with_maps, alone = (Simulator(num_envs=3) for _ in range(2))
+    for sim in (with_maps, alone):
+        sim.reset(seeds=[4, 5, 6])
+    first_map = with_maps.render_map(1)
+    assert np.array_equal(with_maps.render(), alone.render())
+    for sim in (with_maps, alone):
+        sim.move(np.array([0, 1, 2]))
+    between = with_maps.render_map(1)
+    assert np.array_equal(with_maps.render(), alone.render())
+    assert np.array_equal(between, alone.render_map(1)) and not np.array_equal(first_map, between)
+    with_maps.close()
+    alone.close()
+
+
 def test_views_span_several_buffer_passes():
     config = EnvConfig(width=512, height=384)
     sim = Simulator(config, num_envs=120)  # more tiles than one 4096x4096 buffer holds
