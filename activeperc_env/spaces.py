@@ -60,6 +60,4 @@ def looker_space() -> spaces.Discrete:
 
 def check_action(agent: str, action, space: spaces.Discrete) -> int:
     """``action`` as an int, or ``ValueError`` naming the agent and its space (``checks.check_actions``)."""
-    if (type(action) is int or isinstance(action, np.integer)) and 0 <= action < space.n:
-        return int(action)  # the common case, without building an array (twice a cycle)
     return int(check_actions(action, 1, int(space.n), agent, scalar=True)[0])
