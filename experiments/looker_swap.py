@@ -1,5 +1,5 @@
-"""Which part of a ``meta`` run's looker costs its mover success? The run's mover scored with lookers that mix its
-``phi1`` with the scripted tracking looker.
+"""Which part of a run's looker costs its mover success? The mover of a ``meta`` or ``ia2c`` run scored with lookers
+that mix its own looker (``meta``'s ``phi1``) with the scripted tracking looker.
 
 Run from the repository root::
 
@@ -7,7 +7,8 @@ Run from the repository root::
     python experiments/looker_swap.py RUN... --episodes 200 --csv swap.csv
 
 Each run's mover plays ``--episodes`` held-out episodes (as ``activeperc-eval`` does) with four lookers: its own
-(``phi1``, as at test time); ``phi1`` while the goal is in the looker's view and a random pan while it is not;
+(``phi1``, as at test time; ``ia2c``'s looker in its place); ``phi1`` while the goal is in the looker's view and a
+random pan while it is not;
 :class:`~activeperc_env.scripted.TrackLooker`'s look (centre the goal) while it is in view and ``phi1``'s while it
 is not; and the tracking looker alone. The mover was trained beside its own looker, so a looker that beats it here
 does so for a mover that never learned with it.
@@ -55,9 +56,11 @@ class InViewOrNot(nn.Module):
 def rows_of_run(run: str, episodes: int, seed: int) -> list[dict]:
     """The run's mover scored with each of :data:`LOOKERS`."""
     config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
-    if config.method != "meta":
-        raise SystemExit(f"looker_swap: {run} is a {config.method} run; it needs a meta run")
     mover, phi1 = method.policy()
+    if phi1 is None:  # joint and curriculum pick both actions from the mover's view; fixed_forward holds
+        raise SystemExit(
+            f"looker_swap: {run} is a {config.method} run, without a looker of its own: it needs meta or ia2c"
+        )
     track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
     fov = config.env.fov
     lookers = (phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track)
@@ -71,7 +74,7 @@ def rows_of_run(run: str, episodes: int, seed: int) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     """Score every run's mover with each looker, print the rows (and write them with ``--csv``)."""
     parser = ArgumentParser(prog="looker_swap.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+", help="meta run directories (holding checkpoint.pt)")
+    parser.add_argument("runs", nargs="+", help="meta or ia2c run directories (holding checkpoint.pt)")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes a looker (200)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
     parser.add_argument("--csv", help="also write the rows here")

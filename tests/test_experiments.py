@@ -126,18 +126,24 @@ def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
     assert float(probs.split()[1]) > 0.9 and math.isclose(sum(map(float, probs.split())), 1, abs_tol=0.015)
 
 
-def test_looker_swap_scores_a_meta_runs_mover_with_each_looker(tmp_path):
+@pytest.mark.parametrize("method", ["meta", "ia2c", "joint"])
+def test_looker_swap_scores_a_runs_mover_with_each_looker(tmp_path, method):
     import csv
 
     from activeperc_rl import cli
 
     out, table = tmp_path / "run", tmp_path / "swap.csv"
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
-    assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "10", "--out", str(out)]) == 0
+    train = [*tiny, "--method", method, "--frames", "96", "--eval-episodes", "0", "--max-cycles", "10"]
+    assert cli.main([*train, "--out", str(out)]) == 0
     done = subprocess.run(
         [sys.executable, str(EXPERIMENTS / "looker_swap.py"), str(out), "--episodes", "4", "--csv", str(table)],
         capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
     )  # fmt: skip
+    if method == "joint":  # no looker of its own to swap
+        assert done.returncode == 1 and "a joint run, without a looker of its own" in done.stderr
+        assert not table.exists()
+        return
     assert done.returncode == 0, done.stderr
     rows = list(csv.DictReader(open(table)))
     lookers = ["phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track"]
