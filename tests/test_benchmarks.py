@@ -617,3 +617,12 @@ def test_time_to_success_refuses_a_training_flag_it_cannot_use(capsys):
     with pytest.raises(SystemExit):
         load_script("time_to_success").main(["--", "--epsilon", "0.1", "--method", "fixed_forward"])
     assert "--epsilon is not an option of method 'fixed_forward'" in capsys.readouterr().err
+
+
+def test_view_parallel_times_one_thread_two_threads_and_two_processes(capsys):
+    """Each round names the three ways with their views/s, and the two ways of two with their ratio to one thread's."""
+    load_script("view_parallel").main(["--views", "4", "--seconds", "0.5", "--rounds", "1"])
+    out = capsys.readouterr().out
+    assert "LP_NUM_THREADS=" in out and "4 views of the default room" in out
+    pattern = r"round 1: one thread [0-9,]+ views/s; two threads, a context each, [0-9,]+ \([0-9.]+x\); two processes"
+    assert re.search(pattern + r" [0-9,]+ \([0-9.]+x\)$", out, flags=re.MULTILINE), out
