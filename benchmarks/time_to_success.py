@@ -200,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{method} seed {seed} at {frames:,} frames: {rows[-1]['success_rate']}", flush=True)
     print(report(rows, methods))
     plot(rows, methods, figure)
-    print(f"wrote {args.csv} and {figure}")
+    print(f"wrote {figure}" if args.no_train else f"wrote {args.csv} and {figure}")
     return 0
 
 

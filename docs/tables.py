@@ -571,10 +571,12 @@ LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py 
     "--e2-rooms 8": "time_to_success_400k_e2_rooms8.csv",
     "--looker-encoder own_bearing": "time_to_success_400k_looker_encoder_own_bearing.csv",
     "--looker-encoder mover": "time_to_success_400k_looker_encoder_mover.csv",
+    "--alpha 1.0": "time_to_success_400k_alpha1.csv",
 }
 """The default recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2; with the looks valued
 as in a mirror too; with fewer random looks in E2; with E2 in fewer rooms than E1, which gives the mover more updates
-a frame; and with ``phi2`` reading its view through the bearing layout, or through the mover's encoder."""
+a frame; with ``phi2`` reading its view through the bearing layout, or through the mover's encoder; and with ``phi1``
+a copy of ``phi2`` at every soft update (no lag)."""
 LEVER_POINTS = (300_000, 400_000)
 SWAP = "experiments/results/looker_swap.csv"
 
