@@ -78,17 +78,18 @@ def measured(config, out: Path, frames: int, episodes: int) -> dict:
 
 
 def add_row(path: Path, row: dict) -> list[dict]:
-    """Add ``row`` to the CSV at ``path`` and return all its rows: under a lock on its folder, with the rows that
-    other runs of the benchmark (other seeds, one core each) wrote there meanwhile."""
+    """Add ``row`` to the CSV at ``path`` and return all its rows as read back (text, as :func:`read_rows` gives
+    them): under a lock on its folder, with the rows that other runs of the benchmark (other seeds, one core each)
+    wrote there meanwhile."""
     path.parent.mkdir(parents=True, exist_ok=True)
     folder = os.open(path.parent, os.O_RDONLY)
     try:
         fcntl.flock(folder, fcntl.LOCK_EX)
         rows = read_rows(path) + [row]
         harness.write_csv(path, COLUMNS, [tuple(r[c] for c in COLUMNS) for r in rows])
+        return read_rows(path)
     finally:
         os.close(folder)  # (and the lock with it)
-    return rows
 
 
 def read_rows(path: Path) -> list[dict]:

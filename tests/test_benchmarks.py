@@ -578,9 +578,12 @@ def test_time_to_success_scores_each_step_over_seeds_and_resumes_where_it_stoppe
     for method in ("meta", "fixed_forward"):
         for threshold in tts.THRESHOLDS:
             assert f"{method}: mean held-out success {threshold:.2f}: " in out
+        assert f"{method}: at 2" in out  # the last point every seed has (200 frames or more)
     assert (tmp_path / "tts.png").stat().st_size > 0
     assert tts.main(args) == 0  # everything measured: nothing trains again
-    assert "activeperc-train:" not in capsys.readouterr().out
+    again = capsys.readouterr().out
+    assert "activeperc-train:" not in again
+    assert tts.report(rows, ["meta", "fixed_forward"]) in out and tts.report(rows, ["meta", "fixed_forward"]) in again
     assert tts.read_rows(tmp_path / "tts.csv") == rows
     more = ["--seeds", "0", "1", "2", "--no-train", "--figure", str(tmp_path / "drawn.png")]
     assert tts.main([*more, *args[3:]]) == 0  # seed 2 is not measured, and not trained
