@@ -389,7 +389,6 @@ GOAL_COLUMNS = {  # (room, MiniWorld's llvmpipe setting): header
     ("v3", "LP_NUM_THREADS=0"): "v3 (the default room) against MiniWorld with our `LP_NUM_THREADS=0`",
     ("v3", "as it ships"): "v3 against MiniWorld as it ships",
     ("v3", "LP_NUM_THREADS=2"): "v3, ours and MiniWorld at `LP_NUM_THREADS=2`",
-    ("v1", "as it ships"): "v1 against MiniWorld as it ships",
 }
 GOAL_SETTING = ("v3", "LP_NUM_THREADS=0")
 """The column the goals are judged in (bold): the default room, MiniWorld drawing as ours does."""
@@ -434,13 +433,11 @@ def goal_cell(row: dict | None) -> str:
 
 def goals() -> str:
     """The 2-core goals: each goal in the default room against MiniWorld with its llvmpipe set as ours, as it ships and
-    with both at two llvmpipe threads, and in v1 against MiniWorld as it ships."""
-    rows = read(f"{BENCH}/cpu2/goals.csv")
+    with both at two llvmpipe threads (rows of other rooms are left out)."""
+    rows = [r for r in read(f"{BENCH}/cpu2/goals.csv") if (r["room"], r["peer"]) in GOAL_COLUMNS]
+    goals = dict.fromkeys(r["goal"] for r in read(f"{BENCH}/cpu2/goals.csv"))
     cells = {(r["goal"], r["room"], r["peer"]): r for r in rows}
-    lines = [
-        [goal] + [goal_cell(cells.get((goal, *column))) for column in GOAL_COLUMNS]
-        for goal in dict.fromkeys(r["goal"] for r in rows)
-    ]
+    lines = [[goal] + [goal_cell(cells.get((goal, *column))) for column in GOAL_COLUMNS] for goal in goals]
     return markdown(["goal (2 CPU cores)", *GOAL_COLUMNS.values()], lines) + runs_footer(rows)
 
 
@@ -497,15 +494,19 @@ def first_reached(points: dict, threshold: float) -> tuple | None:
 
 def time_to_success() -> str:
     """Held-out success of the default command against training frames and minutes (``time_to_success.py``, the
-    runs of :data:`DEFAULT_CURVES`): mean ± 95 % interval over the seeds every point has, per method, and where each
+    runs of :data:`TIME_TO_SUCCESS`): mean ± 95 % interval over the seeds every point has, per column, and where each
     threshold is first reached."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from time_to_success import THRESHOLDS, curve
 
-    rows = read(f"{BENCH}/cpu2/{DEFAULT_CURVES}")
-    methods = list(dict.fromkeys(r["method"] for r in rows))
-    curves = {method: {frames: rest for frames, *rest in curve(rows, method)} for method in methods}
-    seeds = {method: sorted({r["seed"] for r in rows if r["method"] == method}) for method in methods}
+    columns, commands = [], []
+    for name, method, how in TIME_TO_SUCCESS:
+        rows = [r for r in read(f"{BENCH}/cpu2/{name}") if r["method"] == method]
+        seeds = sorted({r["seed"] for r in rows}, key=int)
+        points = {frames: rest for frames, *rest in curve(rows, method)}
+        columns.append((f"`{method}`, {count(len(seeds), 'seed')}, {how}", points))
+        command = time_to_success_command(seeds, STEP, name, "" if method == "meta" else f"--method {method}")
+        commands += [{"command": command} | r for r in rows]
 
     def cell(point) -> str:
         if point is None:
@@ -513,27 +514,26 @@ def time_to_success() -> str:
         minutes, success, half = point
         return f"{spread_of(success, half)} ({minutes:.1f} min)"
 
-    steps = sorted({step(frames) for points in curves.values() for frames in points})
-    nearest = {m: {step(f): p for f, p in points.items()} for m, points in curves.items()}
-    lines = [[f"{at:,}"] + [cell(nearest[m].get(at)) for m in methods] for at in steps]
+    steps = sorted({step(frames) for _, points in columns for frames in points})
+    nearest = [{step(f): p for f, p in points.items()} for _, points in columns]
+    lines = [[f"{at:,}"] + [cell(points.get(at)) for points in nearest] for at in steps]
     for threshold in THRESHOLDS:
         firsts = []
-        for method in methods:
-            first = first_reached(curves[method], threshold)
+        for _, points in columns:
+            first = first_reached(points, threshold)
             firsts.append(f"{first[0]:,} frames, {first[1][0]:.1f} min" if first else "not reached")
         lines.append([f"first mean ≥ {threshold:.2f}", *firsts])
-    header = ["frames"] + [f"`{m}`, {count(len(seeds[m]), 'seed')}" for m in methods]
-    commands = []
-    for method in methods:
-        flags = "" if method == "meta" else f"--method {method}"
-        command = time_to_success_command(seeds[method], STEP, DEFAULT_CURVES, flags)
-        commands += [{"command": command} | r for r in rows if r["method"] == method]
-    footer = runs_footer(commands).removesuffix(".\n")
-    return markdown(header, lines) + footer + "; two runs at a time, each on one core (`taskset`).\n"
+    return markdown(["frames"] + [label for label, _ in columns], lines) + runs_footer(commands)
 
 
 DEFAULT_CURVES = "time_to_success_400k.csv"
 """The CSV of ``time_to_success.py`` that holds the default command's runs (and ``fixed_forward``'s beside them)."""
+TIME_TO_SUCCESS = (  # (CSV, method, how its runs shared the machine)
+    ("time_to_success_400k_alone.csv", "meta", "alone"),
+    (DEFAULT_CURVES, "fixed_forward", "two at a time"),
+)
+"""The columns of :func:`time_to_success`: the default command's runs one at a time on both cores, beside
+``fixed_forward``'s, two at a time, each on one core (``taskset``)."""
 OLD_DEFAULT = f"--frames 600000 {OLD_SHAPE}"
 """The budget, run shape and schedule of the defaults before 2026-12-06."""
 TWO_CORES = {"time_to_success.csv"}
