@@ -434,8 +434,9 @@ def goal_cell(row: dict | None) -> str:
 def goals() -> str:
     """The 2-core goals: each goal in the default room against MiniWorld with its llvmpipe set as ours, as it ships and
     with both at two llvmpipe threads (rows of other rooms are left out)."""
-    rows = [r for r in read(f"{BENCH}/cpu2/goals.csv") if (r["room"], r["peer"]) in GOAL_COLUMNS]
-    goals = dict.fromkeys(r["goal"] for r in read(f"{BENCH}/cpu2/goals.csv"))
+    every = read(f"{BENCH}/cpu2/goals.csv")
+    rows = [r for r in every if (r["room"], r["peer"]) in GOAL_COLUMNS]
+    goals = dict.fromkeys(r["goal"] for r in every)
     cells = {(r["goal"], r["room"], r["peer"]): r for r in rows}
     lines = [[goal] + [goal_cell(cells.get((goal, *column))) for column in GOAL_COLUMNS] for goal in goals]
     return markdown(["goal (2 CPU cores)", *GOAL_COLUMNS.values()], lines) + runs_footer(rows)
