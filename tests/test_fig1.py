@@ -163,6 +163,7 @@ def test_sweep_runs_exports_skips_and_extends(sweep, aggregate, tmp_path, capsys
         assert list(curve[0]) == ["frames", "episodes", "success_rate", "mean_return"]
         assert curve[-1]["frames"] == row["frames"]
         assert 0.0 <= float(row["final_success_rate"]) <= 1.0
+        assert row["machine"] == portable.machine()
 
     capsys.readouterr()
     assert sweep.main([*base, "--frames", "64", *TINY]) == 0  # everything is done: nothing runs
@@ -478,6 +479,16 @@ def test_difference_table_pairs_seeds(aggregate):
     assert aggregate.difference_table([row("fixed_forward", 0, 0.5)]) == ""
     against_meta = aggregate.difference_table(rows, "meta_eps0.3")  # the other way round: the reference lists the rest
     assert "| 60 | fixed_forward | 0,1 | -0.150 ± 0.635 (-0.785 to +0.485) |" in against_meta
+
+
+def test_machines_line_names_each_cpu_with_its_seeds(aggregate):
+    rows = [{"seed": "0", "machine": "AMD EPYC, AVX2"}, {"seed": "1", "machine": "AMD EPYC, AVX512"}]
+    rows += [{"seed": "0", "machine": "AMD EPYC, AVX2"}, {"seed": "2", "machine": ""}, {"seed": "10"}]
+    assert aggregate.machines_line(rows) == (
+        "\nMachines: AMD EPYC, AVX2: seeds 0 (2 runs); AMD EPYC, AVX512: seeds 1 (1 run); not recorded: seeds 2,10"
+        " (2 runs).\n"
+    )
+    assert aggregate.machines_line([{"seed": "0"}]) == ""
 
 
 def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys, monkeypatch):

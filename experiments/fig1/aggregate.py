@@ -227,6 +227,21 @@ def summary_table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def machines_line(rows: list[dict]) -> str:
+    """A line naming the CPUs that made the runs, with their seeds and number of runs (outside ``--portable`` a run
+    repeats on its own kind of CPU only); empty when no row records one."""
+    groups: dict[str, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(row.get("machine") or "not recorded", []).append(row)
+    if set(groups) == {"not recorded"}:
+        return ""
+    parts = []
+    for machine, runs in sorted(groups.items()):
+        seeds = ",".join(sorted({str(r["seed"]) for r in runs}, key=int))
+        parts.append(f"{machine}: seeds {seeds} ({len(runs)} run{'s' if len(runs) > 1 else ''})")
+    return "\nMachines: " + "; ".join(parts) + ".\n"
+
+
 def paired_difference(rows: list[dict], method: str, fov: int, reference: str = "fixed_forward") -> tuple:
     """The seeds that ``method`` and ``reference`` both ran at ``fov`` (in ``rows``' order), and the mean and 95 %
     half-width over them of ``method``'s held-out success minus ``reference``'s (no seeds: NaN and NaN)."""
@@ -296,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
         methods = sorted({r["method"] for r in rows})
         if args.against is not None and args.against not in methods:
             raise ValueError(f"--against {args.against!r}: no runs of that method here; these ran: {methods}")
-        table = summary_table(rows)
+        table = summary_table(rows) + machines_line(rows)
         marker = "fig1-ablations" if args.ablations else "fig1-summary"
         if doc is not None:
             if not doc.is_file():

@@ -88,7 +88,12 @@ SUMMARY_COLUMNS = (
     "random_success_rate",
     "random_return",
     "train_minutes",
+    "machine",
 )
+"""Columns of a summary row; ``machine`` (:func:`~activeperc_rl.runtime.portable.machine` of the sweep that exported
+the run) is empty in rows exported before it was recorded."""
+NUMBERS = SUMMARY_COLUMNS[1:-1]
+"""The summary columns that hold numbers (every one required)."""
 CURVE_COLUMNS = ("frames", "episodes", "success_rate", "mean_return")
 """Columns of an exported curve; ``episodes`` counts the training episodes finished so far."""
 CURVE_ROWS = 200
@@ -303,16 +308,17 @@ def export_run(task: Task, run_dir: Path, results: Path) -> dict:
         "random_success_rate": round(evaluation["random"]["success_rate"], 4),
         "random_return": round(evaluation["random"]["mean_return"], 4),
         "train_minutes": round(float(rows[-1]["time_s"]) / 60, 1),
+        "machine": portable.machine(),
     }
 
 
 def read_summary(path: Path) -> list[dict]:
     """The rows of a summary CSV (empty when the file does not exist); see :func:`read_rows`. A value that is not
     a number where one belongs is a ``ValueError`` naming the file and line."""
-    rows = read_rows(path, SUMMARY_COLUMNS)
+    rows = read_rows(path, SUMMARY_COLUMNS[:1] + NUMBERS)
     for line, row in enumerate(rows, start=2):
         try:
-            for column in SUMMARY_COLUMNS[1:]:
+            for column in NUMBERS:
                 (int if column in ("fov", "seed", "frames") else float)(row[column])
         except ValueError as error:
             raise ValueError(f"{path}, line {line}: {error}") from None
@@ -350,7 +356,7 @@ def merge_summary(path: Path, new_rows: list[dict]) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as temporary, open(temporary, "w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=SUMMARY_COLUMNS)
+        writer = csv.DictWriter(file, fieldnames=SUMMARY_COLUMNS, restval="")
         writer.writeheader()
         writer.writerows(rows[key] for key in sorted(rows, key=order))
 
