@@ -48,7 +48,7 @@ from activeperc_rl.models import (
     start_holding,
 )
 
-MOVER_ROLLOUTS = ("d1", "all")
+MOVER_ROLLOUTS = ("d1", "all", "each")
 E1_LOOKS = ("greedy", "sample")
 OPTIMIZERS = ("adam", "sgd")
 LOOKER_ENCODERS = ("own", "own_bearing", "mover")
@@ -126,8 +126,9 @@ class MetaConfig(LookerOptions):
     e2_rooms: int = 0
     """Rooms of E2 (0: as many as E1's ``num_envs``); fewer give the mover more A2C steps a frame."""
     mover_rollouts: str = "all"
-    """What the mover learns from: 'all' (the first D1 and D2, then the D1 sampled after the soft update) or 'd1'
-    (the paper: that D1 only)."""
+    """What the mover learns from: 'all' (one A2C step on the first D1 and D2 together, then one on the D1 sampled
+    after the soft update), 'each' (the same rollouts, one step on each: as many steps a frame as the baselines
+    take) or 'd1' (the paper: the D1 sampled after the soft update only)."""
     e1_looks: str = "greedy"
     """How phi1 picks its looks in E1 and at test time: 'greedy' (its argmax) or 'sample' (drawn from its
     distribution)."""
@@ -175,7 +176,7 @@ class Meta(_MoverA2C):
        most);
     4. soft update phi1 <- alpha phi2 + (1 - alpha) phi1 (eq. 3);
     5. sample D1 again with the new phi1 (``resample_d1``) and take an A2C step of theta and w1 on it
-       (``mover_rollouts='all'``: first one on the first D1 and D2 together);
+       (``mover_rollouts='all'``: first one on the first D1 and D2 together; ``'each'``: one on each);
     6. copy w1 -> w2.
     """
 
@@ -247,6 +248,10 @@ class Meta(_MoverA2C):
             both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
             first = self._update_mover(both)  # logged apart from the D1 step's losses, which would overwrite them
             losses |= {key.replace("mover/", "mover_d1_d2/", 1): value for key, value in first.items()}
+        elif options.mover_rollouts == "each":
+            for name, rollout in (("mover_d1", d1), ("mover_d2", d2)):
+                step = self._update_mover(rollout.exclude(LOOKER, ("next", LOOKER)))
+                losses |= {key.replace("mover/", f"{name}/", 1): value for key, value in step.items()}
         if options.resample_d1:
             d1 = self._next(self.e1)
             frames += d1.numel()

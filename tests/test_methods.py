@@ -225,6 +225,8 @@ def test_curriculum_keeps_its_switch_point_on_resume():
         ("d1", True, [2], {"mover"}),
         ("all", True, [4, 2], {"mover_d1_d2", "mover"}),
         ("all", False, [4], {"mover_d1_d2"}),
+        ("each", True, [2, 2, 2], {"mover_d1", "mover_d2", "mover"}),
+        ("each", False, [2, 2], {"mover_d1", "mover_d2"}),
     ],
 )
 def test_meta_mover_rollouts(mover_rollouts, resample_d1, expected, logged):
