@@ -117,22 +117,39 @@ def test_the_budget_counts_each_learners_updates_and_frames(tmp_path, capsys):
     assert "--iterations 0: expected at least 1" in capsys.readouterr().err
 
 
-def test_ablations_change_one_option_of_meta_eps03_fov60(sweep):
-    v0 = FIG1 / "configs" / "v0"
-    reference = TrainConfig.from_dict(load_yaml(v0 / "meta_eps0.3_fov60.yaml")).to_dict()
+@pytest.mark.parametrize(
+    ("room", "expected"),
+    [
+        (
+            "v0",
+            {
+                "meta_eps0.3_independent_seeds_fov60": {"shared_seeds": False},
+                "meta_eps0.3_alpha0.01_fov60": {"alpha": 0.01},
+                "meta_eps0.3_alpha0.2_fov60": {"alpha": 0.2},
+                "meta_eps0.3_paper_mover_fov60": {"mover_rollouts": "d1"},
+            },
+        ),
+        (
+            "v3",
+            {
+                "meta_eps0.3_alpha1_fov60": {"alpha": 1.0},
+                "meta_eps0.3_each_mover_fov60": {"mover_rollouts": "each"},
+                "meta_eps0.3_trajectory_fov60": {"looker_credit": "trajectory"},
+            },
+        ),
+    ],
+)
+def test_ablations_change_one_option_of_meta_eps03_fov60(sweep, room, expected):
+    folder = FIG1 / "configs" / room
+    reference = TrainConfig.from_dict(load_yaml(folder / "meta_eps0.3_fov60.yaml")).to_dict()
     changed = {}
-    for path in sweep.find_configs(ablations=True, root=v0):
+    for path in sweep.find_configs(ablations=True, root=folder):
         values = TrainConfig.from_dict(load_yaml(path)).to_dict()
         sections = [key for key in values if key != "method"]
         changed[path.stem] = {
             k: v for section in sections for k, v in values[section].items() if v != reference[section][k]
         }
-    assert changed == {
-        "meta_eps0.3_independent_seeds_fov60": {"shared_seeds": False},
-        "meta_eps0.3_alpha0.01_fov60": {"alpha": 0.01},
-        "meta_eps0.3_alpha0.2_fov60": {"alpha": 0.2},
-        "meta_eps0.3_paper_mover_fov60": {"mover_rollouts": "d1"},
-    }
+    assert changed == expected
 
 
 def test_unknown_config_is_named(sweep, capsys):
