@@ -573,12 +573,16 @@ LEVERS = {  # the flags added to the 400k recipe: its CSV of time_to_success.py 
     "--looker-encoder own_bearing": "time_to_success_400k_looker_encoder_own_bearing.csv",
     "--looker-encoder mover": "time_to_success_400k_looker_encoder_mover.csv",
     "--alpha 1.0": "time_to_success_400k_alpha1.csv",
+    "--lr 0.0014": "time_to_success_400k_lr0.0014.csv",
+    "--mover-rollouts each": "time_to_success_400k_each.csv",
+    "--num-envs 16": "time_to_success_400k_envs16.csv",
 }
 """The default recipe with ``phi2`` stepped at a larger learning rate, or four times on each D2; with the looks valued
 as in a mirror too; with fewer random looks in E2; with E2 in fewer rooms than E1, which gives the mover more updates
-a frame; with ``phi2`` reading its view through the bearing layout, or through the mover's encoder; and with ``phi1``
-a copy of ``phi2`` at every soft update (no lag)."""
-LEVER_POINTS = (300_000, 400_000)
+a frame; with ``phi2`` reading its view through the bearing layout, or through the mover's encoder; with ``phi1``
+a copy of ``phi2`` at every soft update (no lag); and three that give the mover larger or more steps a frame: twice its
+learning rate, one step on each rollout, half the rooms."""
+LEVER_POINTS = (200_000, 300_000, 400_000)
 SWAP = "experiments/results/looker_swap.csv"
 
 STEP = 100_000
