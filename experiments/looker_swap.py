@@ -11,7 +11,8 @@ Each run's mover plays ``--episodes`` held-out episodes (as ``activeperc-eval`` 
 random pan while it is not;
 :class:`~activeperc_env.scripted.TrackLooker`'s look (centre the goal) while it is in view and ``phi1``'s while it
 is not; and the tracking looker alone. The mover was trained beside its own looker, so a looker that beats it here
-does so for a mover that never learned with it.
+does so for a mover that never learned with it. With ``--lookers-of RUN...`` each mover also plays with those runs'
+lookers (``meta``'s and ``ia2c``'s swapped: is a method ahead by its looker or by its mover?).
 """
 
 from __future__ import annotations
@@ -53,19 +54,33 @@ class InViewOrNot(nn.Module):
         return tensordict
 
 
-def rows_of_run(run: str, episodes: int, seed: int) -> list[dict]:
-    """The run's mover scored with each of :data:`LOOKERS`."""
+def policy_of(run: str):
+    """The run's config, mover and looker (``meta``'s ``phi1``, ``ia2c``'s looker); ``SystemExit`` naming a run of a
+    method without a looker of its own."""
     config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
-    mover, phi1 = method.policy()
-    if phi1 is None:  # joint and curriculum pick both actions from the mover's view; fixed_forward holds
+    mover, looker = method.policy()
+    if looker is None:  # joint and curriculum pick both actions from the mover's view; fixed_forward holds
         raise SystemExit(
             f"looker_swap: {run} is a {config.method} run, without a looker of its own: it needs meta or ia2c"
         )
+    return config, mover, looker
+
+
+def rows_of_run(run: str, episodes: int, seed: int, lookers_of: tuple[str, ...] = ()) -> list[dict]:
+    """The run's mover scored with each of :data:`LOOKERS`, then with the looker of each run of ``lookers_of``."""
+    config, mover, phi1 = policy_of(run)
     track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
     fov = config.env.fov
-    lookers = (phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track)
+    names = [*LOOKERS, *(f"looker of {other}" for other in lookers_of if other != run)]
+    lookers = [phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track]
+    for other in lookers_of:
+        if other != run:
+            other_config, _, looker = policy_of(other)
+            if other_config.env != config.env:
+                raise SystemExit(f"looker_swap: {other} was trained in another room than {run}: {other_config.env}")
+            lookers.append(looker)
     rows = []
-    for name, looker in zip(LOOKERS, lookers, strict=True):
+    for name, looker in zip(names, lookers, strict=True):
         score = evaluate(config, mover, looker, episodes=episodes, seed=seed)
         rows.append({"run": run, "looker": name} | {key: score[key] for key in COLUMNS[2:5]})
     return rows
@@ -77,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="+", help="meta or ia2c run directories (holding checkpoint.pt)")
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes a looker (200)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
+    parser.add_argument("--lookers-of", nargs="+", default=[], help="runs whose lookers every mover also plays with")
     parser.add_argument("--csv", help="also write the rows here")
     args = parser.parse_args(argv)
     if args.episodes < 1:
@@ -85,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     print(" | ".join(COLUMNS))
     rows = []
     for run in args.runs:
-        for row in rows_of_run(run, args.episodes, args.seed):
+        for row in rows_of_run(run, args.episodes, args.seed, tuple(args.lookers_of)):
             rows.append(row | where)
             print(" | ".join(str(rows[-1][column]) for column in COLUMNS), flush=True)
     if args.csv:

@@ -152,6 +152,37 @@ def test_looker_swap_scores_a_runs_mover_with_each_looker(tmp_path, method):
     assert len(done.stdout.splitlines()) == 1 + len(lookers)
 
 
+def test_looker_swap_swaps_the_lookers_of_meta_and_ia2c_runs(tmp_path):
+    import csv
+
+    from activeperc_rl import cli
+
+    tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
+    tiny += ["--frames", "96", "--eval-episodes", "0", "--max-cycles", "10"]
+    runs = {name: tmp_path / name for name in ("meta", "ia2c", "ia2c_fov100")}
+    for name, out in runs.items():
+        fov = ["--fov", "100"] if name.endswith("fov100") else []
+        assert cli.main([*tiny, *fov, "--method", name.split("_")[0], "--out", str(out)]) == 0
+    script, table = [sys.executable, str(EXPERIMENTS / "looker_swap.py")], tmp_path / "swap.csv"
+    both = [str(runs["meta"]), str(runs["ia2c"])]
+    done = subprocess.run(
+        [*script, *both, "--episodes", "2", "--lookers-of", *both, "--csv", str(table)],
+        capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    rows = list(csv.DictReader(open(table)))
+    assert [(r["run"], r["looker"]) for r in rows if r["looker"].startswith("looker of")] == [
+        (both[0], f"looker of {both[1]}"),
+        (both[1], f"looker of {both[0]}"),
+    ]
+    assert len(rows) == 2 * 5
+    done = subprocess.run(
+        [*script, both[0], "--episodes", "2", "--lookers-of", str(runs["ia2c_fov100"])],
+        capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
+    )  # fmt: skip
+    assert done.returncode == 1 and f"{runs['ia2c_fov100']} was trained in another room than {both[0]}" in done.stderr
+
+
 def test_looker_refit_scores_a_meta_runs_lookers_and_refitted_copies(tmp_path):
     import csv
 
