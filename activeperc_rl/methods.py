@@ -127,8 +127,7 @@ class MetaConfig(LookerOptions):
     """Rooms of E2 (0: as many as E1's ``num_envs``); fewer give the mover more A2C steps a frame."""
     mover_rollouts: str = "all"
     """What the mover learns from: 'all' (one A2C step on the first D1 and D2 together, then one on the D1 sampled
-    after the soft update), 'each' (the same rollouts, one step on each: as many steps a frame as the baselines
-    take) or 'd1' (the paper: the D1 sampled after the soft update only)."""
+    after the soft update), 'each' (one step on each of those) or 'd1' (the paper: that last D1 only)."""
     e1_looks: str = "greedy"
     """How phi1 picks its looks in E1 and at test time: 'greedy' (its argmax) or 'sample' (drawn from its
     distribution)."""

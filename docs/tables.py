@@ -14,6 +14,7 @@ import argparse
 import csv
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -582,7 +583,7 @@ as in a mirror too; with fewer random looks in E2; with E2 in fewer rooms than E
 a frame; with ``phi2`` reading its view through the bearing layout, or through the mover's encoder; with ``phi1``
 a copy of ``phi2`` at every soft update (no lag); and three that give the mover larger or more steps a frame: twice its
 learning rate, one step on each rollout, half the rooms."""
-LEVER_POINTS = (200_000, 300_000, 400_000)
+LEVER_POINTS = (200_000, 400_000)
 SWAP = "experiments/results/looker_swap.csv"
 
 STEP = 100_000
@@ -646,6 +647,39 @@ def looker_swap() -> str:
     command = f"python experiments/looker_swap.py {braced(runs)} --csv {SWAP}"
     header = ["looker", "held-out success", "difference to `phi1`, by run"]
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+
+
+SWAP_FIG1 = "experiments/results/looker_swap_fig1_v3.csv"
+
+
+def run_label(run: str) -> str:
+    """A Figure 1 sweep's run directory (``RUNS/CONFIG_fovF/seedS``) as ``CONFIG seed S``."""
+    config, seed = run.rstrip("/").split("/")[-2:]
+    return f"{config.rsplit('_fov', 1)[0]} {seed.replace('seed', 'seed ')}"
+
+
+def looker_swap_fig1() -> str:
+    """Figure 1's movers, each with its own looker, the tracking looker and the other runs' lookers
+    (``experiments/looker_swap.py --lookers-of``): held-out success, one row a mover."""
+    rows = read(SWAP_FIG1)
+    runs = list(dict.fromkeys(r["run"] for r in rows))
+    success = {(r["run"], r["looker"]): f"{float(r['success_rate']):.2f}" for r in rows}
+    columns = {"phi1": "its own", "track": "track"}
+    others = {r["looker"].removeprefix("looker of ") for r in rows if r["looker"].startswith("looker of ")}
+    for other in sorted(others, key=lambda run: (runs.index(run) if run in runs else len(runs), run)):
+        columns[f"looker of {other}"] = f"{run_label(other)}'s"
+    lines = [[run_label(run), *(success.get((run, looker), "") for looker in columns)] for run in runs]
+    episodes = sorted({r["episodes"] for r in rows})
+    command = (
+        f"python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes {'/'.join(episodes)} --csv {SWAP_FIG1}"
+    )
+    footer = runs_footer([{"command": command} | r for r in rows])
+    prefix, suffix = os.path.commonprefix(runs), os.path.commonprefix([run[::-1] for run in runs])[::-1]
+    middles = ",".join(run[len(prefix) : len(run) - len(suffix)] for run in runs)
+    named = f"{prefix}{{{middles}}}{suffix}" if len(runs) > 1 else runs[0]
+    return markdown(["mover", *(f"{name} looker" for name in columns.values())], lines) + footer.replace(
+        "Commands: ", f"RUNS: `{named}`. Command: ", 1
+    )
 
 
 def braced(paths: list[str]) -> str:
@@ -857,6 +891,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
     "looker-swap": ("performance.md", looker_swap),
+    "looker-swap-fig1": ("results.md", looker_swap_fig1),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
