@@ -674,22 +674,21 @@ def looker_swap_fig1() -> str:
         f"python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes {'/'.join(episodes)} --csv {SWAP_FIG1}"
     )
     footer = runs_footer([{"command": command} | r for r in rows])
-    prefix, suffix = os.path.commonprefix(runs), os.path.commonprefix([run[::-1] for run in runs])[::-1]
-    middles = ",".join(run[len(prefix) : len(run) - len(suffix)] for run in runs)
-    named = f"{prefix}{{{middles}}}{suffix}" if len(runs) > 1 else runs[0]
     return markdown(["mover", *(f"{name} looker" for name in columns.values())], lines) + footer.replace(
-        "Commands: ", f"RUNS: `{named}`. Command: ", 1
+        "Commands: ", f"RUNS: `{braced(runs)}`. Command: ", 1
     )
 
 
 def braced(paths: list[str]) -> str:
-    """``paths`` as one shell word where they differ only in a number at their end (``runs/seed{0,1,2}``), else
-    joined by spaces."""
-    stems = {path.rstrip("0123456789") for path in paths}
-    if len(paths) < 2 or len(stems) > 1:
+    """``paths`` as one shell word, the part where they differ in braces (``runs/seed{0,1,2}``,
+    ``runs/{meta,ia2c}/seed1``); one path as it is."""
+    if len(paths) < 2:
         return " ".join(paths)
-    stem = stems.pop()
-    return stem + "{" + ",".join(path[len(stem) :] for path in paths) + "}"
+    prefix = os.path.commonprefix(paths)
+    shortest = min(len(path) for path in paths) - len(prefix)
+    suffix = os.path.commonprefix([path[::-1] for path in paths])[::-1][-shortest:] if shortest else ""
+    middles = ",".join(path[len(prefix) : len(path) - len(suffix)] for path in paths)
+    return f"{prefix}{{{middles}}}{suffix}"
 
 
 def time_to_success_command(seeds: list[str], every: int, name: str, flags: str) -> str:

@@ -71,14 +71,14 @@ def rows_of_run(run: str, episodes: int, seed: int, lookers_of: tuple[str, ...] 
     config, mover, phi1 = policy_of(run)
     track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
     fov = config.env.fov
-    names = [*LOOKERS, *(f"looker of {other}" for other in lookers_of if other != run)]
+    others = [other for other in lookers_of if other != run]
+    names = [*LOOKERS, *(f"looker of {other}" for other in others)]
     lookers = [phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track]
-    for other in lookers_of:
-        if other != run:
-            other_config, _, looker = policy_of(other)
-            if other_config.env != config.env:
-                raise SystemExit(f"looker_swap: {other} was trained in another room than {run}: {other_config.env}")
-            lookers.append(looker)
+    for other in others:
+        other_config, _, looker = policy_of(other)
+        if other_config.env != config.env:
+            raise SystemExit(f"looker_swap: {other} was trained in another room than {run}: {other_config.env}")
+        lookers.append(looker)
     rows = []
     for name, looker in zip(names, lookers, strict=True):
         score = evaluate(config, mover, looker, episodes=episodes, seed=seed)
