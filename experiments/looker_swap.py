@@ -18,6 +18,7 @@ lookers (``meta``'s and ``ia2c``'s swapped: is a method ahead by its looker or b
 from __future__ import annotations
 
 import datetime
+import os
 import sys
 
 import numpy as np
@@ -97,6 +98,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    missing = [
+        run for run in dict.fromkeys([*args.runs, *args.lookers_of]) if not os.path.isfile(f"{run}/{CHECKPOINT}")
+    ]
+    if missing:
+        parser.error(f"{', '.join(map(repr, missing))}: no {CHECKPOINT} there (run directories of activeperc-train)")
     where = {"machine": portable.machine(), "date": datetime.date.today().isoformat()}
     print(" | ".join(COLUMNS))
     rows = []

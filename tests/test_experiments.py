@@ -26,6 +26,8 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
         ("looker_refit.py", ["RUN", "--lr", "0"], "--rooms, --cycles and --batch must be >= 1 and every --lr > 0"),
         ("looker_swap.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
+        ("looker_swap.py", ["no-such-run"], "'no-such-run': no checkpoint.pt there"),
+        ("looker_swap.py", ["RUN", "--lookers-of", "other"], "'RUN', 'other': no checkpoint.pt there"),
         ("pretrained.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
         ("pretrained.py", ["no-such-run"], "'no-such-run' holds no run"),
     ],
