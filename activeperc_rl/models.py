@@ -170,7 +170,8 @@ class Encoder(nn.Module):
 
     def _features(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None) -> torch.Tensor:
         batch = image.shape[:-3]
-        x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).float().div(255.0)
+        # a fresh float copy (never the caller's tensor), scaled in place: one pass over the images fewer
+        x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).to(torch.float32, copy=True).div_(255.0)
         x = self.conv(x)
         pan = pan.reshape(-1, self.frames).to(x.dtype)
         if self.layout is not None:
