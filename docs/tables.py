@@ -26,6 +26,7 @@ sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  
 from aggregate import (  # noqa: E402
     difference_table,
     group_runs,
+    machines_line,
     mean_ci,
     method_rank,
     paired_difference,
@@ -140,6 +141,16 @@ def runs_table(name: str, columns: list[str]) -> str:
 def fig1_ablations() -> str:
     """The ablations of the Figure 1 sweep after the runs of the config they change (as aggregate.py writes it)."""
     return summary_table(with_reference(read(f"{FIG1}/ablations.csv"), read(f"{FIG1}/summary.csv")))
+
+
+V3 = "experiments/results/v3"
+
+
+def fig1_v3_ablations() -> str:
+    """Room v3's ablations of Figure 1 after the runs of the config they change, the paired differences to it and the
+    machines, as ``aggregate.py --ablations --against meta_eps0.3`` prints them."""
+    rows = with_reference(read(f"{V3}/ablations.csv"), read(f"{V3}/summary.csv"))
+    return summary_table(rows) + machines_line(rows) + "\n" + difference_table(rows, "meta_eps0.3")
 
 
 def importance_weights() -> str:
@@ -880,11 +891,11 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "portable-census": ("training.md", portable_census),
     "portable-speed": ("performance.md", portable_speed),
     "room-v1": ("results.md", lambda: runs_table("room_v1", ["command", "held-out"])),
-    "room-v1-baselines": ("results.md", lambda: runs_table("room_v1_baselines", ["command", "held-out"])),
     "room-v2": ("results.md", lambda: runs_table("room_v2", ["command", "held-out"])),
     "memory-mover": ("results.md", lambda: runs_table("memory_mover", ["command", "held-out"])),
     "fig1-summary": ("results.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
     "fig1-ablations": ("results.md", fig1_ablations),
+    "fig1-v3-ablations": ("results.md", fig1_v3_ablations),
     "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
