@@ -49,28 +49,43 @@ _ABSENT = object()
 
 
 class Stopwatch:
-    """Seconds spent in named parts of a run, added up by the calls it times (:meth:`timed`, :meth:`watching`)."""
+    """Seconds spent in named parts of a run, added up by the calls it times (:meth:`timed`, :meth:`watching`); a
+    timed call inside another counts in its own part only, not in the outer call's (unless that is ``whole``)."""
 
     def __init__(self):
         self.spent: dict[str, float] = {}
+        self._inner: list[float] = []  # per timed call under way, the seconds of the timed calls inside it
 
     def restart(self) -> None:
         """Forget the time spent so far (in a warm-up, say); the parts stay."""
         self.spent = dict.fromkeys(self.spent, 0.0)
 
-    def timed(self, part: str, function: Callable) -> Callable:
-        """``function``, with the time of each call added to ``part``."""
+    def timed(self, part: str, function: Callable, whole: bool = False) -> Callable:
+        """``function``, with the time of each call added to ``part``: less the timed calls inside it, or all of it
+        with ``whole`` (a total around the other parts, which then count as if it were not timed)."""
         self.spent.setdefault(part, 0.0)
 
         @functools.wraps(function)
-        def timed_call(*args, **kwargs):
+        def whole_call(*args, **kwargs):
             start = time.perf_counter()
             try:
                 return function(*args, **kwargs)
             finally:
                 self.spent[part] += time.perf_counter() - start
 
-        return timed_call
+        @functools.wraps(function)
+        def timed_call(*args, **kwargs):
+            self._inner.append(0.0)
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                elapsed = time.perf_counter() - start
+                self.spent[part] += elapsed - self._inner.pop()
+                if self._inner:
+                    self._inner[-1] += elapsed
+
+        return whole_call if whole else timed_call
 
     @contextlib.contextmanager
     def watching(self, owner: object, names: Iterable[str]) -> Iterator[None]:

@@ -35,7 +35,10 @@ GOALS = (  # (name, multiple of MiniWorld's raw steps/s that meta must reach)
     ("stretch: meta >= 1.5x MiniWorld raw env speed on 2 cores", 1.5),
 )
 GPU_GOAL = 20_000  # meta training frames/s on an H100 with 16 cores
-PART_LABELS = harness.SIMULATOR_PARTS | {"forward": "network forward passes (Head.forward)"}
+PART_LABELS = harness.SIMULATOR_PARTS | {
+    "look_views": "look views (Simulator.look_views)",
+    "forward": "network forward passes (Head.forward)",
+}
 WIDTH = 32  # of a run's label in the report
 
 
@@ -44,14 +47,14 @@ def collection_parts() -> list[tuple[type, tuple[str, ...]]]:
     from activeperc_env.core import Simulator
     from activeperc_rl.models import Head
 
-    return [(Simulator, tuple(harness.SIMULATOR_PARTS)), (Head, ("forward",))]
+    return [(Simulator, (*harness.SIMULATOR_PARTS, "look_views")), (Head, ("forward",))]
 
 
 def time_collections(method, stopwatch: harness.Stopwatch, parts: bool) -> None:
     """Time ``method``'s collections (its ``_next``, wrapped on this instance only) as the part ``collect`` of
     ``stopwatch`` and, with ``parts``, the methods of :func:`collection_parts` within them: their classes are patched
     only while a collection runs, so learning's forward passes are not counted."""
-    next_rollout = stopwatch.timed("collect", method._next)
+    next_rollout = stopwatch.timed("collect", method._next, whole=True)
     owners = collection_parts() if parts else []
 
     def collect(collector):

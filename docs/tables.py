@@ -826,6 +826,7 @@ PART_NAMES = {
     "look": "the looks",
     "reset": "resets",
     "render": "renders",
+    "look_views": "the looks' views (E2, for `best_look`)",
     "forward": "network forward passes in collection",
 }
 

@@ -211,6 +211,19 @@ def test_the_stopwatch_times_methods_only_within_its_block_and_restores_them(har
     assert stopwatch.spent == {"wait": 0.0}
 
 
+def test_a_timed_call_inside_another_counts_in_its_own_part_only(harness):
+    stopwatch = harness.Stopwatch()
+    inner = stopwatch.timed("inner", time.sleep)
+
+    def outer_work():
+        time.sleep(0.02)
+        inner(0.05)
+
+    stopwatch.timed("outer", outer_work)()
+    assert 0.05 <= stopwatch.spent["inner"] < 0.07  # a busy machine oversleeps a little
+    assert 0.02 <= stopwatch.spent["outer"] < 0.045  # its own 20 ms, not the inner call's 50
+
+
 def test_timed_parts_gives_each_parts_seconds_per_unit_after_the_warm_up(harness):
     stopwatch = harness.Stopwatch()
     nap = stopwatch.timed("nap", time.sleep)
@@ -335,13 +348,14 @@ def test_train_speed_parts_time_every_part_within_the_collections_and_restore_th
     from activeperc_rl.models import Head
 
     module = load_script("train_speed")
-    originals = (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward)
+    methods = ("move", "look", "reset", "render", "look_views")
+    originals = [getattr(Simulator, name) for name in methods] + [Head.forward]
     result = module.bench_method("meta", num_envs=2, seconds=0.01, warmup_iters=0, parts=True)
-    assert (Simulator.move, Simulator.look, Simulator.reset, Simulator.render, Head.forward) == originals
+    assert [getattr(Simulator, name) for name in methods] + [Head.forward] == originals
     assert result["iterations"] == 1 and result["frames"] == 3 * 8 * 2  # meta: three rollouts of 8 cycles, 2 rooms
     parts = result["parts_s"]
     assert list(parts) == list(module.PART_LABELS)
-    assert all(parts[part] > 0 for part in ("move", "look", "render", "forward"))
+    assert all(parts[part] > 0 for part in ("move", "look", "render", "look_views", "forward"))
     assert sum(parts.values()) < result["collect_s"] < result["seconds"]
 
 
