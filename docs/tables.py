@@ -660,7 +660,8 @@ def looker_swap() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
-SWAP_FIG1 = "experiments/results/looker_swap_fig1_v3.csv"
+SWAP_FIG1 = ("experiments/results/looker_swap_fig1_v3.csv", "experiments/results/looker_swap_fig1_v3_seed2.csv")
+"""One CSV a seed: looker_swap.py swaps the lookers of the runs it is given, so each call gets one seed's runs."""
 
 
 def run_label(run: str) -> str:
@@ -670,23 +671,33 @@ def run_label(run: str) -> str:
 
 
 def looker_swap_fig1() -> str:
-    """Figure 1's movers, each with its own looker, the tracking looker and the other runs' lookers
+    """Figure 1's movers, each with its own looker, the tracking looker and the lookers of the other runs of its seed
     (``experiments/looker_swap.py --lookers-of``): held-out success, one row a mover."""
-    rows = read(SWAP_FIG1)
+    per_csv = {path: read(path) for path in SWAP_FIG1}
+    rows = [row for path_rows in per_csv.values() for row in path_rows]
     runs = list(dict.fromkeys(r["run"] for r in rows))
     success = {(r["run"], r["looker"]): f"{float(r['success_rate']):.2f}" for r in rows}
-    columns = {"phi1": "its own", "track": "track"}
-    others = {r["looker"].removeprefix("looker of ") for r in rows if r["looker"].startswith("looker of ")}
-    for other in sorted(others, key=lambda run: (runs.index(run) if run in runs else len(runs), run)):
-        columns[f"looker of {other}"] = f"{run_label(other)}'s"
-    lines = [[run_label(run), *(success.get((run, looker), "") for looker in columns)] for run in runs]
-    episodes = sorted({r["episodes"] for r in rows})
-    command = (
-        f"python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes {'/'.join(episodes)} --csv {SWAP_FIG1}"
+
+    def others(run: str) -> str:
+        swapped = [r for r in rows if r["run"] == run and r["looker"].startswith("looker of ")]
+        return ", ".join(
+            f"{run_label(r['looker'].removeprefix('looker of ')).split(' seed ')[0]} {success[run, r['looker']]}"
+            for r in swapped
+        )
+
+    lines = [
+        [run_label(run), success.get((run, "phi1"), ""), success.get((run, "track"), ""), others(run)] for run in runs
+    ]
+    episodes = "/".join(sorted({r["episodes"] for r in rows}))
+    calls = "; ".join(
+        f"`{braced(list(dict.fromkeys(r['run'] for r in path_rows)))}` into `{path}`"
+        for path, path_rows in per_csv.items()
     )
-    footer = runs_footer([{"command": command} | r for r in rows])
-    return markdown(["mover", *(f"{name} looker" for name in columns.values())], lines) + footer.replace(
-        "Commands: ", f"RUNS: `{braced(runs)}`. Command: ", 1
+    where = "; ".join(sorted({f"{r['machine']}, {r['date']}" for r in rows}))
+    header = ["mover", "its own looker", "track looker", "the looker of its seed's run of"]
+    return markdown(header, lines) + (
+        f"\nCommand, one seed's RUNS at a time: `python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes "
+        f"{episodes} --csv CSV`, {calls} ({where}).\n"
     )
 
 
@@ -878,7 +889,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goal-visibility": ("results.md", goal_visibility),
     "value-of-looking": ("results.md", lambda: value_of_looking("value_of_looking")),
     "value-of-looking-v3": ("results.md", lambda: value_of_looking("value_of_looking_v3")),
-    "room-v3-bearing": ("results.md", lambda: v3_sweep(V3_BEARING)),
+    "room-v3-bearing": ("results.md", lambda: summary_table(read(f"{V3_BEARING}/summary.csv"))),
     "room-v3-bearing-vs-meta": (
         "results.md",
         lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
