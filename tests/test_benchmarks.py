@@ -220,8 +220,8 @@ def test_a_timed_call_inside_another_counts_in_its_own_part_only(harness):
         inner(0.05)
 
     stopwatch.timed("outer", outer_work)()
-    assert 0.05 <= stopwatch.spent["inner"] < 0.07  # a busy machine oversleeps a little
-    assert 0.02 <= stopwatch.spent["outer"] < 0.045  # its own 20 ms, not the inner call's 50
+    assert 0.05 <= stopwatch.spent["inner"] < 0.2  # a busy machine oversleeps
+    assert 0.02 <= stopwatch.spent["outer"] < 0.05  # its own 20 ms, not the inner call's 50 as well
 
 
 def test_timed_parts_gives_each_parts_seconds_per_unit_after_the_warm_up(harness):
