@@ -689,16 +689,14 @@ def looker_swap_fig1() -> str:
         [run_label(run), success.get((run, "phi1"), ""), success.get((run, "track"), ""), others(run)] for run in runs
     ]
     episodes = "/".join(sorted({r["episodes"] for r in rows}))
+    command = f"python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes {episodes} --csv CSV"
     calls = "; ".join(
         f"`{braced(list(dict.fromkeys(r['run'] for r in path_rows)))}` into `{path}`"
         for path, path_rows in per_csv.items()
     )
-    where = "; ".join(sorted({f"{r['machine']}, {r['date']}" for r in rows}))
     header = ["mover", "its own looker", "track looker", "the looker of its seed's run of"]
-    return markdown(header, lines) + (
-        f"\nCommand, one seed's RUNS at a time: `python experiments/looker_swap.py RUNS --lookers-of RUNS --episodes "
-        f"{episodes} --csv CSV`, {calls} ({where}).\n"
-    )
+    footer = runs_footer([{"command": command} | r for r in rows])
+    return markdown(header, lines) + footer.replace("Commands: ", f"One seed's RUNS at a time: {calls}. Command: ", 1)
 
 
 def braced(paths: list[str]) -> str:
