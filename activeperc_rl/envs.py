@@ -95,7 +95,8 @@ class ActivePerceptionEnv(EnvBase):
         first_room: index of the first room in the seeding of a larger env split over several (see :func:`make_env`).
         look_views: in looker mode, also record under ``("looker", "look_views")`` the ``"image"`` (3, H, W, 3) and
             ``"pan"`` (3, 1) that 'pan left', 'hold' and 'pan right' would have given the mover in each cycle
-            (:meth:`~activeperc_env.Simulator.look_views`): the views meta's credit for every look values.
+            (:meth:`~activeperc_env.Simulator.look_views`): the views meta's credit for every look values, which the
+            looker reads too.
         backend: the simulator's backend (:func:`make_env`).
         frame_stack: the views of the latest ``frame_stack`` cycles in every observation: its ``image`` stacks them
             on the channels, ``(*batch, H, W, 3 * frame_stack)`` oldest first, and its ``pan`` holds their pans,
@@ -227,7 +228,17 @@ class ActivePerceptionEnv(EnvBase):
             self._update_specs()
             return
         n = self.batch_size
-        fake = TensorDict({LOOKER: {"observation": self._obs_spec.zero()}}, batch_size=n, device=self.device)
+        spec = Composite(observation=self._obs_spec.clone(), shape=n, device=self.device)
+        if self.look_views:
+            image, pan = self._obs_spec["image"], self._obs_spec["pan"]
+            looks = len(LOOKER_ACTIONS)
+            spec["look_views"] = Composite(
+                image=Bounded(0, 255, (*n, looks, *image.shape[1:]), dtype=torch.uint8, device=self.device),
+                pan=Bounded(pan.space.low.min(), pan.space.high.max(), (*n, looks, *pan.shape[1:]), device=self.device),
+                shape=n,
+                device=self.device,
+            )
+        fake = TensorDict({LOOKER: spec.zero()}, batch_size=n, device=self.device)  # what the looker reads
         devices = [self.device] if self.device is not None and self.device.type == "cuda" else []
         with torch.no_grad(), torch.random.fork_rng(devices=devices):
             out = module(fake.clone())
@@ -238,16 +249,6 @@ class ActivePerceptionEnv(EnvBase):
             raise ValueError(
                 f"the looker module must write ({LOOKER!r}, 'action') and only entries under {LOOKER!r}; "
                 f"it wrote {sorted(map(str, new))}"
-            )
-        spec = Composite(observation=self._obs_spec.clone(), shape=n, device=self.device)
-        if self.look_views:
-            image, pan = self._obs_spec["image"], self._obs_spec["pan"]
-            looks = len(LOOKER_ACTIONS)
-            spec["look_views"] = Composite(
-                image=Bounded(0, 255, (*n, looks, *image.shape[1:]), dtype=torch.uint8, device=self.device),
-                pan=Bounded(pan.space.low.min(), pan.space.high.max(), (*n, looks, *pan.shape[1:]), device=self.device),
-                shape=n,
-                device=self.device,
             )
         for key in sorted(new, key=str):
             value = out.get(key)
@@ -315,12 +316,15 @@ class ActivePerceptionEnv(EnvBase):
             self.sim.look(looks, ids)
         else:
             record = TensorDict({LOOKER: {"observation": self._observe()}}, batch_size=self.batch_size)
+            if self.look_views:  # drawn before the look: a looker may pick by them
+                image, pan = self._stacked_look_views()
+                views = TensorDict({"image": image, "pan": pan}, batch_size=self.batch_size)
+                record.set((LOOKER, "look_views"), views)
             with torch.no_grad():
                 written = self._looker(record)
             record = (record if written is None else written).get(LOOKER)
             if self.look_views:
-                views, pans = self._stacked_look_views()
-                record.set("look_views", {"image": views, "pan": pans})
+                record.set("look_views", views)
             self.sim.look(_to_numpy(record.get("action"), n, LOOKER)[ids], ids)
             out.set(LOOKER, record.select(*self._looker_spec.keys(True, True)))
         observation = self._observe()

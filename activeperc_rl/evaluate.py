@@ -45,6 +45,7 @@ def evaluate(
     video: str | Path | None = None,
     progress: bool = False,
     on_cycle=None,
+    look_views: bool = False,
 ) -> dict:
     """Play ``episodes`` held-out episodes and summarise them.
 
@@ -60,6 +61,8 @@ def evaluate(
         progress: show a progress bar of the finished episodes on stderr while it runs (gone when it ends).
         on_cycle: called after every cycle as ``on_cycle(env, td, counted)``: the env, the step's tensordict (its
             ``"next"`` entries before any reset) and a bool array of the rooms whose episode is one of those played.
+        look_views: draw what each look would show before the looker picks one, for a looker that reads them
+            (:func:`~activeperc_rl.envs.make_env`'s ``look_views``).
 
     Returns:
         ``{"episodes", "success_rate", "mean_return", "mean_length"}``.
@@ -93,6 +96,7 @@ def evaluate(
         split="eval",
         backend=config.run.backend,
         frame_stack=config.network.frame_stack,
+        look_views=look_views,
         config=config.env,
     )
     bar = tqdm(total=episodes, unit="episode", desc="evaluating", disable=not progress, leave=False, dynamic_ncols=True)

@@ -105,7 +105,7 @@ from torchrl.objectives.value import GAE
 from activeperc_env.core import HOLD, LOOKER_ACTIONS
 
 __all__ = [
-    "LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "best_looks", "mirror", "trajectory_ids",
+    "LOOKER_CREDITS", "VIEW_CREDITS", "MetaEvaluationLoss", "best_looks", "mirror", "trajectory_ids", "view_values",
     "trajectory_means",
 ]  # fmt: skip
 
@@ -139,6 +139,26 @@ def best_looks(values: torch.Tensor) -> torch.Tensor:
     """The ``best_look`` label of each cycle from the critic's values of its looks' views ``(cycles, looks)``: the look
     valued most, 'hold' unless a pan's view is valued above holding's."""
     return torch.where(values.max(-1).values > values[:, HOLD], values.argmax(-1), HOLD)
+
+
+def view_values(
+    critic, steps: TensorDictBase, views: TensorDictBase, group: str, value_key="state_value", mirrored: bool = False
+) -> torch.Tensor:
+    """``(steps, looks)``: ``critic``'s value (at ``value_key``) of every look's view ``views`` (``image`` and ``pan``,
+    ``(steps, looks, ...)``) of each step, with the ``group``'s other observations, without gradient (``mirrored``:
+    the mean of its values of the view and of the view's mirror image)."""
+    values = []
+    for look in range(views.get("pan").shape[-2]):
+        td = steps.select(*critic.in_keys, strict=False).clone(False)
+        for key in critic.in_keys:  # ("mover", "observation", k): the look's view, the looker's range
+            name = key[-1]
+            td.set(key, views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:])))
+        with torch.no_grad():
+            value = critic(td).get(value_key).reshape(-1)
+            if mirrored:
+                value = (value + critic(mirror(td.select(*critic.in_keys))).get(value_key).reshape(-1)) / 2
+        values.append(value)
+    return torch.stack(values, -1).detach()
 
 
 def trajectory_ids(done: torch.Tensor, mask: torch.Tensor | None = None) -> tuple[torch.Tensor, int]:
@@ -530,7 +550,8 @@ class MetaEvaluationLoss(LossModule):
                 f"credit='every_look' needs the views of every look at {(group, 'look_views')!r}: collect D2 with "
                 "make_env(..., look_views=True)"
             )
-        q = self._held("views", lambda: self._view_values(steps, views, group))  # (steps, looks)
+        value_key = self.tensor_keys.value
+        q = self._held("views", lambda: view_values(self.critic, steps, views, group, value_key, self.mirrored))
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
@@ -550,24 +571,6 @@ class MetaEvaluationLoss(LossModule):
             "best_look_right": best == LOOKER_ACTIONS.index("pan_right"),
         }
         return self._output(loss_looker, loss_entropy, entropy, None, meta, baseline, num, num_ref, shares)
-
-    def _view_values(self, steps: TensorDictBase, views: TensorDictBase, group: str) -> torch.Tensor:
-        """``(steps, looks)``: the critic's value of every look's view of each step, without gradient (with
-        ``mirrored``, the mean of its values of the view and of the view's mirror image)."""
-        values = []
-        for look in range(views.get("pan").shape[-2]):
-            td = steps.select(*self.critic.in_keys, strict=False).clone(False)
-            for key in self.critic.in_keys:  # ("mover", "observation", k): the look's view, the looker's range
-                name = key[-1]
-                source = views.get(name)[:, look] if name in views.keys() else steps.get((group, *key[1:]))
-                td.set(key, source)
-            with torch.no_grad():
-                value = self.critic(td).get(self.tensor_keys.value).reshape(-1)
-                if self.mirrored:
-                    seen = mirror(td.select(*self.critic.in_keys))
-                    value = (value + self.critic(seen).get(self.tensor_keys.value).reshape(-1)) / 2
-            values.append(value)
-        return torch.stack(values, -1).detach()
 
     def _output(self, loss_looker, loss_entropy, entropy, importance_weight, meta, baseline, num, num_ref, shares=None):
         """The loss's tensordict: the losses, and the diagnostics of the looks (``importance_weight`` ``None``: 1;

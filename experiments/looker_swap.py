@@ -1,5 +1,5 @@
 """Which part of a run's looker costs its mover success? The mover of a ``meta`` or ``ia2c`` run scored with lookers
-that mix its own looker (``meta``'s ``phi1``) with the scripted tracking looker.
+that mix its own looker (``meta``'s ``phi1``) with the scripted tracking looker, and with its critic's best look.
 
 Run from the repository root::
 
@@ -10,7 +10,9 @@ Each run's mover plays ``--episodes`` held-out episodes (as ``activeperc-eval`` 
 (``phi1``, as at test time; ``ia2c``'s looker in its place); ``phi1`` while the goal is in the looker's view and a
 random pan while it is not;
 :class:`~activeperc_env.scripted.TrackLooker`'s look (centre the goal) while it is in view and ``phi1``'s while it
-is not; and the tracking looker alone. The mover was trained beside its own looker, so a looker that beats it here
+is not; the tracking looker alone; and the look whose view the run's critic values most (the label ``meta``'s
+``best_look`` credit trains ``phi2`` toward, taken as the look: what ``phi2`` would do if it fitted its labels).
+``--lookers`` picks some of them. The mover was trained beside its own looker, so a looker that beats it here
 does so for a mover that never learned with it. With ``--lookers-of RUN...`` each mover also plays with those runs'
 lookers (``meta``'s and ``ia2c``'s swapped: is a method ahead by its looker or by its mover?).
 """
@@ -30,11 +32,18 @@ from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.scripted import goal_in_view
 from activeperc_rl.envs import LOOKER, latest_view
 from activeperc_rl.evaluate import MAX_ROOMS, evaluate
+from activeperc_rl.losses import best_looks, view_values
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restored_method
 
-LOOKERS = ("phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track")
+LOOKERS = (
+    "phi1",
+    "phi1 in view, random pan out of view",
+    "track in view, phi1 out of view",
+    "track",
+    "critic's best look",
+)
 COLUMNS = ["run", "looker", "episodes", "success_rate", "mean_return", "machine", "date"]
 
 
@@ -55,6 +64,22 @@ class InViewOrNot(nn.Module):
         return tensordict
 
 
+class BestLook(nn.Module):
+    """Takes in every room the look whose view ``critic`` values most, 'hold' on a tie (meta's ``best_look`` label);
+    it reads the views of the env's ``look_views``."""
+
+    def __init__(self, critic: nn.Module, mirrored: bool = False):
+        super().__init__()
+        self.critic, self.mirrored = critic, mirrored
+
+    def forward(self, tensordict):
+        """Write the looks of every room into ``tensordict``."""
+        views = tensordict.get((LOOKER, "look_views"))
+        values = view_values(self.critic, tensordict, views, LOOKER, self.critic.out_keys[0], self.mirrored)
+        tensordict.set((LOOKER, "action"), best_looks(values))
+        return tensordict
+
+
 def policy_of(run: str):
     """The run's config, mover and looker (``meta``'s ``phi1``, ``ia2c``'s looker); ``SystemExit`` naming a run of a
     method without a looker of its own."""
@@ -64,25 +89,36 @@ def policy_of(run: str):
         raise SystemExit(
             f"looker_swap: {run} is a {config.method} run, without a looker of its own: it needs meta or ia2c"
         )
-    return config, mover, looker
+    return config, mover, looker, method.critic
 
 
-def rows_of_run(run: str, episodes: int, seed: int, lookers_of: tuple[str, ...] = ()) -> list[dict]:
-    """The run's mover scored with each of :data:`LOOKERS`, then with the looker of each run of ``lookers_of``."""
-    config, mover, phi1 = policy_of(run)
+def rows_of_run(
+    run: str, episodes: int, seed: int, lookers_of: tuple[str, ...] = (), names: tuple[str, ...] = LOOKERS
+) -> list[dict]:
+    """The run's mover scored with each of ``names`` (of :data:`LOOKERS`), then with the looker of each run of
+    ``lookers_of``."""
+    config, mover, phi1, critic = policy_of(run)
     track = ScriptedLooker("track", config.env, MAX_ROOMS, seed)
     fov = config.env.fov
+    mirrored = getattr(config.options, "mirror_looks", False)
+    ours = {
+        "phi1": phi1,
+        "phi1 in view, random pan out of view": InViewOrNot(phi1, track, fov),
+        "track in view, phi1 out of view": InViewOrNot(track, phi1, fov),
+        "track": track,
+        "critic's best look": BestLook(critic, mirrored),
+    }
     others = [other for other in lookers_of if other != run]
-    names = [*LOOKERS, *(f"looker of {other}" for other in others)]
-    lookers = [phi1, InViewOrNot(phi1, track, fov), InViewOrNot(track, phi1, fov), track]
+    lookers = {name: ours[name] for name in names}
     for other in others:
-        other_config, _, looker = policy_of(other)
+        other_config, _, looker, _ = policy_of(other)
         if other_config.env != config.env:
             raise SystemExit(f"looker_swap: {other} was trained in another room than {run}: {other_config.env}")
-        lookers.append(looker)
+        lookers[f"looker of {other}"] = looker
     rows = []
-    for name, looker in zip(names, lookers, strict=True):
-        score = evaluate(config, mover, looker, episodes=episodes, seed=seed)
+    for name, looker in lookers.items():
+        views = isinstance(looker, BestLook)
+        score = evaluate(config, mover, looker, episodes=episodes, seed=seed, look_views=views)
         rows.append({"run": run, "looker": name} | {key: score[key] for key in COLUMNS[2:5]})
     return rows
 
@@ -94,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=whole_number, default=200, help="held-out episodes a looker (200)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
     parser.add_argument("--lookers-of", nargs="+", default=[], help="runs whose lookers every mover also plays with")
+    parser.add_argument(
+        "--lookers", nargs="+", choices=LOOKERS, default=list(LOOKERS), metavar="LOOKER", help=f"of {LOOKERS} (all)"
+    )
     parser.add_argument("--csv", help="also write the rows here")
     args = parser.parse_args(argv)
     if args.episodes < 1:
@@ -107,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     print(" | ".join(COLUMNS))
     rows = []
     for run in args.runs:
-        for row in rows_of_run(run, args.episodes, args.seed, tuple(args.lookers_of)):
+        for row in rows_of_run(run, args.episodes, args.seed, tuple(args.lookers_of), tuple(args.lookers)):
             rows.append(row | where)
             print(" | ".join(str(rows[-1][column]) for column in COLUMNS), flush=True)
     if args.csv:

@@ -149,9 +149,39 @@ def test_looker_swap_scores_a_runs_mover_with_each_looker(tmp_path, method):
     assert done.returncode == 0, done.stderr
     rows = list(csv.DictReader(open(table)))
     lookers = ["phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track"]
+    lookers.append("critic's best look")
     assert [r["looker"] for r in rows] == lookers and all(r["episodes"] == "4" for r in rows)
     assert all(0 <= float(r["success_rate"]) <= 1 for r in rows)
     assert len(done.stdout.splitlines()) == 1 + len(lookers)
+
+
+def test_the_best_look_looker_takes_the_look_whose_view_the_critic_values_most():
+    """A critic that values a view by its pan: the looker pans left (positive pans) until the limit, then holds."""
+    import torch
+    from tensordict.nn import TensorDictModule
+
+    from activeperc_env import EnvConfig
+    from activeperc_env.core import HOLD, LOOKER_ACTIONS
+    from activeperc_rl.envs import LOOKER, MOVER, make_env
+    from activeperc_rl.models import RandomPolicy
+
+    sys.path.insert(0, str(EXPERIMENTS))
+    from looker_swap import BestLook
+
+    pan = TensorDictModule(
+        lambda image, pan: pan.sum(-1, keepdim=True),
+        [(MOVER, "observation", "image"), (MOVER, "observation", "pan")],
+        ["state_value"],
+    )
+    env = make_env(3, looker=BestLook(pan), look_views=True, seed=0, config=EnvConfig(max_cycles=40))
+    torch.manual_seed(0)
+    rollout = env.rollout(30, RandomPolicy((MOVER,)), break_when_any_done=False)
+    env.close()
+    looks, pans = rollout["next", LOOKER, "action"], rollout["next", LOOKER, "observation", "pan"][..., -1]  # as seen
+    limit = env.config.pan_range * torch.pi / 180
+    at_limit = pans >= limit - 1e-6
+    assert at_limit.any() and (~at_limit).any()
+    assert (looks[~at_limit] == LOOKER_ACTIONS.index("pan_left")).all() and (looks[at_limit] == HOLD).all()
 
 
 def test_looker_swap_swaps_the_lookers_of_meta_and_ia2c_runs(tmp_path):
@@ -177,7 +207,7 @@ def test_looker_swap_swaps_the_lookers_of_meta_and_ia2c_runs(tmp_path):
         (both[0], f"looker of {both[1]}"),
         (both[1], f"looker of {both[0]}"),
     ]
-    assert len(rows) == 2 * 5
+    assert len(rows) == 2 * 6
     done = subprocess.run(
         [*script, both[0], "--episodes", "2", "--lookers-of", str(runs["ia2c_fov100"])],
         capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,

@@ -323,7 +323,8 @@ def test_a_failed_start_shuts_down_the_collectors_it_had_opened(monkeypatch):
 
 
 @pytest.mark.parametrize("looker_steps", [1, 3])
-def test_meta_takes_looker_steps_on_each_d2(looker_steps):
+def test_meta_takes_looker_steps_on_each_d2(looker_steps, monkeypatch):
+    from activeperc_rl import losses
     from activeperc_rl.recipe import TrainConfig, make_method
 
     config = TrainConfig.from_options(
@@ -332,8 +333,8 @@ def test_meta_takes_looker_steps_on_each_d2(looker_steps):
     method = make_method(config, torch.device("cpu"))
     steps, step = [], method._step
     method._step = lambda name, *args: steps.append(name) or step(name, *args)
-    valued, value = [], method.meta_loss._view_values
-    method.meta_loss._view_values = lambda *args: valued.append(1) or value(*args)
+    valued, value = [], losses.view_values
+    monkeypatch.setattr(losses, "view_values", lambda *args: valued.append(1) or value(*args))
     try:
         method.iterate()
     finally:
