@@ -24,11 +24,11 @@ FIG1 = "experiments/fig1/results"
 sys.path[:0] = [str(ROOT / "experiments" / "fig1"), str(ROOT / "experiments")]  # the scripts' own table makers
 
 from aggregate import (  # noqa: E402
+    CLAIMS,
+    claims,
     difference_table,
-    group_runs,
     machines_line,
     mean_ci,
-    method_rank,
     paired_difference,
     replace_between,
     summary_table,
@@ -146,6 +146,13 @@ def fig1_ablations() -> str:
 V3 = "experiments/results/v3"
 
 
+def fig1_v3() -> str:
+    """Figure 1 in room v3 and the machines that ran it, as ``aggregate.py --results experiments/results/v3`` prints
+    them."""
+    rows = read(f"{V3}/summary.csv")
+    return summary_table(rows) + machines_line(rows)
+
+
 def fig1_v3_ablations() -> str:
     """Room v3's ablations of Figure 1 after the runs of the config they change, the paired differences to it and the
     machines, as ``aggregate.py --ablations --against meta_eps0.3`` prints them."""
@@ -193,7 +200,6 @@ def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
     return outcomes
 
 
-V3_BEARING = "experiments/results/v3_bearing"
 V3_DEFAULT = "experiments/results/v3_400k"
 """The default command (``meta``) and ``--method fixed_forward`` over seeds 0-9, at the default budget."""
 README_SEEDS = (range(5), range(5, 10))
@@ -305,49 +311,15 @@ def pretrained() -> str:
     )
 
 
-CLAIM_ROOMS = {"v3": "experiments/results/v3_bearing/summary.csv", "v0": f"{FIG1}/summary.csv"}
+CLAIM_ROOMS = {"v3": f"{V3}/summary.csv", "v0": f"{FIG1}/summary.csv"}
 """The Figure 1 sweep of each room the paper's claims are judged in."""
-BASELINES = ("fixed_forward", "joint", "ia2c", "curriculum")
-
-
-def claim_numbers(claim: int, rows: list[dict]) -> str:
-    """The held-out success (return for claim 3) behind the paper's claim ``claim`` (1 to 5) in one room's Figure 1
-    sweep ``rows``."""
-    success = {
-        key: mean_ci([float(r["final_success_rate"]) for r in runs])[0] for key, runs in group_runs(rows).items()
-    }
-
-    def ranked(fov: int, methods) -> str:
-        named = sorted(((success[m, fov], m) for m in methods if (m, fov) in success), reverse=True)
-        return ", ".join(f"`{m}` {value:.3f}" for value, m in named)
-
-    def paired(method: str, fov: int, reference: str) -> str:
-        _, mean, half = paired_difference(rows, method, fov, reference)
-        return f"{mean:+.3f} ± {half:.3f}"
-
-    methods = sorted({m for m, _ in success}, key=method_rank)
-    if claim == 1:
-        return ranked(100, BASELINES)
-    if claim == 2:
-        return f"{ranked(100, methods)}; `meta_eps0.1` minus `meta_eps0.3` {paired('meta_eps0.1', 100, 'meta_eps0.3')}"
-    if claim == 3:  # the paper's claim is about return
-        returns = {key: mean_ci([float(r["final_return"]) for r in runs])[0] for key, runs in group_runs(rows).items()}
-        drops = ", ".join(f"`{m}` {returns[m, 100]:.3f} to {returns[m, 60]:.3f}" for m in methods)
-        return f"held-out return from 100 to 60 degrees: {drops}"
-    if claim == 4:
-        return ranked(60, methods)
-    at = {fov: paired("meta_eps0.3", fov, "fixed_forward") for fov in (60, 100)}
-    return f"`meta_eps0.3` minus `fixed_forward`, paired: {at[60]} at 60 degrees, {at[100]} at 100"
 
 
 def paper_claims() -> str:
-    """Each of the paper's claims, its verdict in room v3 and in room v0 (``paper_claims.csv``) and the held-out
-    success behind it, from each room's Figure 1 sweep."""
-    sweeps = {room: read(path) for room, path in CLAIM_ROOMS.items()}
-    rows = [
-        [row["claim"], *(f"{row[room]}: {claim_numbers(number, sweeps[room])}" for room in CLAIM_ROOMS)]
-        for number, row in enumerate(read("experiments/results/paper_claims.csv"), start=1)
-    ]
+    """Each of the paper's claims, its verdict in room v3 and in room v0 and the held-out success behind it, from each
+    room's Figure 1 sweep (``aggregate.claims``)."""
+    judged = [claims(read(path)) for path in CLAIM_ROOMS.values()]
+    rows = [[claim, *(f"{room[i][1]}: {room[i][2]}" for room in judged)] for i, claim in enumerate(CLAIMS)]
     return markdown(["claim", "room v3, 1,000,000 frames", "room v0, 300,000 frames"], rows)
 
 
@@ -699,6 +671,34 @@ def looker_swap_fig1() -> str:
     return markdown(header, lines) + footer.replace("Commands: ", f"One seed's RUNS at a time: {calls}. Command: ", 1)
 
 
+BEST_LOOK_FIG1 = "experiments/results/best_look_fig1_v3.csv"
+
+
+def best_look_fig1() -> str:
+    """Figure 1's movers at 60 degrees with their own looker, their critic's best look (the label of meta's
+    ``best_look`` credit, taken as the look) and the tracking looker: mean ± 95 % interval over a method's runs, and
+    the paired difference of the best look to the run's own looker."""
+    rows = read(BEST_LOOK_FIG1)
+    success = {(r["run"], r["looker"]): float(r["success_rate"]) for r in rows}
+    by_method: dict[str, list[str]] = {}
+    for run in dict.fromkeys(r["run"] for r in rows):
+        by_method.setdefault(run_label(run).split(" seed ")[0], []).append(run)
+    lines = []
+    for method, runs in by_method.items():
+        seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
+        cells = [spread(success[run, looker] for run in runs) for looker in ("phi1", "critic's best look", "track")]
+        paired = mean_ci([success[run, "critic's best look"] - success[run, "phi1"] for run in runs])
+        lines.append([f"`{method}`", seeds, *cells, spread_of(*paired, "+.2f")])
+    runs = list(dict.fromkeys(r["run"] for r in rows))
+    episodes = "/".join(sorted({r["episodes"] for r in rows}))
+    command = (
+        f'python experiments/looker_swap.py {braced(runs)} --lookers phi1 "critic\'s best look" track '
+        f"--episodes {episodes} --csv {BEST_LOOK_FIG1}"
+    )
+    header = ["mover", "seeds", "its own looker", "its critic's best look", "track looker", "best look − own, by run"]
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+
+
 def braced(paths: list[str]) -> str:
     """``paths`` as one shell word, the part where they differ in braces (``runs/seed{0,1,2}``,
     ``runs/{meta,ia2c}/seed1``); one path as it is."""
@@ -887,11 +887,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "goal-visibility": ("results.md", goal_visibility),
     "value-of-looking": ("results.md", lambda: value_of_looking("value_of_looking")),
     "value-of-looking-v3": ("results.md", lambda: value_of_looking("value_of_looking_v3")),
-    "room-v3-bearing": ("results.md", lambda: summary_table(read(f"{V3_BEARING}/summary.csv"))),
-    "room-v3-bearing-vs-meta": (
-        "results.md",
-        lambda: difference_table(read(f"{V3_BEARING}/summary.csv"), "meta_eps0.3"),
-    ),
+    "fig1-v3": ("results.md", fig1_v3),
+    "fig1-v3-vs-meta": ("results.md", lambda: difference_table(read(f"{V3}/summary.csv"), "meta_eps0.3")),
     "readme-results": ("../README.md", readme_results),
     "room-v3-default": ("results.md", lambda: v3_sweep(V3_DEFAULT)),
     "fig1-budget": ("results.md", fig1_budget),
@@ -912,6 +909,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "recipe-options": ("performance.md", recipe_options),
     "looker-swap": ("performance.md", looker_swap),
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
+    # "best-look-fig1": ("results.md", best_look_fig1),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (

@@ -498,6 +498,50 @@ def test_difference_table_pairs_seeds(aggregate):
     assert "| 60 | fixed_forward | 0,1 | -0.150 ± 0.635 (-0.785 to +0.485) |" in against_meta
 
 
+def test_claims_are_judged_from_the_sweeps_means(aggregate):
+    """Two seeds of each method: meta at epsilon 0.3 best at 60 degrees and ahead of the fixed camera on both seeds,
+    curriculum best at 100, joint's return up from 100 to 60 degrees, ia2c the one baseline below 0.5 at 100."""
+    success = {
+        60: {
+            "meta_eps0.1": 0.6,
+            "meta_eps0.3": 0.8,
+            "fixed_forward": 0.3,
+            "joint": 0.7,
+            "ia2c": 0.05,
+            "curriculum": 0.5,
+        },
+        100: {
+            "meta_eps0.1": 0.7,
+            "meta_eps0.3": 0.85,
+            "fixed_forward": 0.6,
+            "joint": 0.6,
+            "ia2c": 0.1,
+            "curriculum": 0.9,
+        },
+    }
+    rows = [
+        {"method": method, "fov": str(fov), "seed": str(seed), "final_success_rate": str(value + seed / 100)}
+        | {"final_return": str((value if (method, fov) != ("joint", 60) else 0.65) * 0.9)}
+        for fov, values in success.items()
+        for method, value in values.items()
+        for seed in (0, 1)
+    ]
+    verdicts = [(claim[:2], verdict) for claim, verdict, _ in aggregate.claims(rows)]
+    assert verdicts == [
+        ("1.", "reproduced by `fixed_forward`, `joint` and `curriculum` only"),
+        ("2.", "not reproduced"),
+        ("3.", "for `meta_eps0.1`, `meta_eps0.3`, `fixed_forward`, `ia2c` and `curriculum`; not for `joint`"),
+        ("4.", "reproduced"),
+        ("(i", "reproduced"),
+    ]
+    numbers = {claim[:2]: text for claim, _, text in aggregate.claims(rows)}
+    assert numbers["4."].startswith("`meta_eps0.3` 0.805, `joint` 0.705")
+    assert (
+        numbers["(i"]
+        == "`meta_eps0.3` minus `fixed_forward`, paired: +0.500 ± 0.000 at 60 degrees, +0.250 ± 0.000 at 100"
+    )
+
+
 def test_machines_line_names_each_cpu_with_its_seeds(aggregate):
     rows = [{"seed": "0", "machine": "AMD EPYC, AVX2"}, {"seed": "1", "machine": "AMD EPYC, AVX512"}]
     rows += [{"seed": "0", "machine": "AMD EPYC, AVX2"}, {"seed": "2", "machine": ""}, {"seed": "10"}]
@@ -532,7 +576,8 @@ def test_bad_arguments_are_named(sweep, aggregate, tmp_path, capsys, monkeypatch
         writer.writerows(r for r in rows if r["method"] != "fixed_forward")
     monkeypatch.setattr(aggregate, "plot_curves", lambda rows, curves, out: None)
     assert aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig")]) == 0
-    assert "minus" not in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "minus" not in out and "claims" not in out  # nor verdicts, which need every method
     with pytest.raises(SystemExit):
         aggregate.main(["--results", str(tmp_path), "--figures", str(tmp_path / "fig"), "--against", "metaa"])
     assert "--against 'metaa': no runs of that method here" in capsys.readouterr().err

@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # sweep.py sits next to this file
 
-from sweep import HERE, method_rank, read_summary  # noqa: E402
+from sweep import HERE, METHODS, method_rank, read_summary  # noqa: E402
 
 from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
@@ -277,6 +277,70 @@ def replace_between(text: str, marker: str, content: str) -> str:
     return head + start + content + end + rest.split(end, 1)[1]
 
 
+CLAIMS = (
+    "1. At 100 degrees some baselines obtain large returns",
+    "2. At 100 degrees `meta` with epsilon 0.1 is best",
+    "3. At 60 degrees every method's return drops",
+    "4. At 60 degrees `meta` with epsilon 0.3 is best",
+    "(implied) `meta`'s looker learns to look and beats the fixed camera",
+)
+"""The paper's claims on Figure 1 (section 4), judged by :func:`claims`."""
+BASELINES = ("fixed_forward", "joint", "ia2c", "curriculum")
+LARGE = 0.5
+"""The held-out success claim 1 counts as a large return (the paper gives no number)."""
+DROP = 0.01
+"""The least fall of held-out return from 100 to 60 degrees that claim 3 counts as a drop."""
+
+
+def claims(rows: list[dict]) -> list[tuple[str, str, str]]:
+    """Each of :data:`CLAIMS` with its verdict in the Figure 1 sweep ``rows`` (every method at 60 and 100 degrees)
+    and the numbers behind it (means over each method's seeds; paired differences over the seeds both ran)."""
+    runs = group_runs(rows)
+    success = {key: mean_ci([float(r["final_success_rate"]) for r in group])[0] for key, group in runs.items()}
+    returns = {key: mean_ci([float(r["final_return"]) for r in group])[0] for key, group in runs.items()}
+    methods = list(dict.fromkeys(method for method, _ in runs))
+
+    def names(listed, joint: str = "and") -> str:
+        quoted = [f"`{m}`" for m in listed]
+        return ", ".join(quoted[:-1]) + f" {joint} {quoted[-1]}" if len(quoted) > 1 else "".join(quoted)
+
+    def ranked(fov: int, among) -> tuple[str, str]:
+        order = sorted(((success[m, fov], m) for m in among if (m, fov) in success), reverse=True)
+        return order[0][1], ", ".join(f"`{m}` {value:.3f}" for value, m in order)
+
+    def paired(method: str, fov: int, reference: str) -> tuple[float, float]:
+        return paired_difference(rows, method, fov, reference)[1:]
+
+    large = [m for m in BASELINES if success.get((m, 100), 0.0) >= LARGE]
+    present = [m for m in BASELINES if (m, 100) in success]
+    first = f"reproduced by {names(large)} only" if large and large != present else _reproduced(bool(large))
+    best100, at100 = ranked(100, methods)
+    eps = paired("meta_eps0.1", 100, "meta_eps0.3")
+    dropped = [m for m in methods if returns[m, 100] - returns[m, 60] > DROP]
+    kept = [m for m in methods if m not in dropped]
+    third = f"for {names(dropped)}; not for {names(kept, 'or')}" if dropped and kept else _reproduced(not kept)
+    falls = ", ".join(f"`{m}` {returns[m, 100]:.3f} to {returns[m, 60]:.3f}" for m in methods)
+    best60, at60 = ranked(60, methods)
+    looker = {fov: paired("meta_eps0.3", fov, "fixed_forward") for fov in (60, 100)}
+    implied = all(mean - half > 0 for mean, half in looker.values())
+    lead = f"`meta_eps0.3` minus `fixed_forward`, paired: {_pm(*looker[60])} at 60 degrees, {_pm(*looker[100])} at 100"
+    return [
+        (CLAIMS[0], first, f"{ranked(100, BASELINES)[1]} (large: held-out success {LARGE} or more)"),
+        (CLAIMS[1], _reproduced(best100 == "meta_eps0.1"), f"{at100}; `meta_eps0.1` minus `meta_eps0.3` {_pm(*eps)}"),
+        (CLAIMS[2], third, f"held-out return from 100 to 60 degrees (a drop: more than {DROP}): {falls}"),
+        (CLAIMS[3], _reproduced(best60 == "meta_eps0.3"), at60),
+        (CLAIMS[4], _reproduced(implied), lead),
+    ]
+
+
+def _reproduced(held: bool) -> str:
+    return "reproduced" if held else "not reproduced"
+
+
+def _pm(mean: float, half: float) -> str:
+    return f"{mean:+.3f}" if math.isnan(half) else f"{mean:+.3f} ± {half:.3f}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line; returns the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -328,6 +392,10 @@ def main(argv: list[str] | None = None) -> int:
     differences = difference_table(rows, args.against or "fixed_forward")
     if differences:
         print("\n" + differences, end="")
+    if not args.ablations and set(group_runs(rows)) >= {(m, fov) for m in METHODS for fov in (60, 100)}:
+        print("\nThe paper's claims:")
+        for claim, verdict, numbers in claims(rows):
+            print(f"- {claim}: {verdict}: {numbers}")
     if doc is None:
         print(f"wrote {figure}")
         return 0
