@@ -81,8 +81,8 @@ class BestLook(nn.Module):
 
 
 def policy_of(run: str):
-    """The run's config, mover and looker (``meta``'s ``phi1``, ``ia2c``'s looker); ``SystemExit`` naming a run of a
-    method without a looker of its own."""
+    """The run's config, mover, looker (``meta``'s ``phi1``, ``ia2c``'s looker) and the mover's critic;
+    ``SystemExit`` naming a run of a method without a looker of its own."""
     config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
     mover, looker = method.policy()
     if looker is None:  # joint and curriculum pick both actions from the mover's view; fixed_forward holds
