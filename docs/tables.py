@@ -909,7 +909,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "recipe-options": ("performance.md", recipe_options),
     "looker-swap": ("performance.md", looker_swap),
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
-    # "best-look-fig1": ("results.md", best_look_fig1),
+    "best-look-fig1": ("results.md", best_look_fig1),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
