@@ -14,6 +14,8 @@ cycles, ``--batch`` cycles a step in turn, at each ``--lr``. For ``phi2``, ``phi
 held-out cycles: how often the greedy look is the label (``agreement``), the same on the cycles where a pan beats
 holding by more than ``--margin`` (``agreement_pan``), and the cross-entropy. A copy that agrees far more often than
 the run's own ``phi2`` says the labels are predictable from the view and the run's looker had not learned them.
+With ``--episodes N`` the run's mover also plays ``N`` held-out episodes with each of them, greedy, as its looker
+(``success_rate``): does a looker that fits its labels better take its mover further?
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.core import HOLD
 from activeperc_rl.envs import LOOKER, make_env
+from activeperc_rl.evaluate import evaluate
 from activeperc_rl.losses import best_looks
 from activeperc_rl.models import EpsilonGreedyLooker
 from activeperc_rl.runtime import portable
@@ -37,8 +40,8 @@ from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restored_method
 
 COLUMNS = (
-    "run", "looker", "steps", "lr", "cycles", "agreement", "agreement_pan", "pan_cycles", "cross_entropy", "machine",
-    "date",
+    "run", "looker", "steps", "lr", "cycles", "agreement", "agreement_pan", "pan_cycles", "cross_entropy",
+    "episodes", "success_rate", "machine", "date",
 )  # fmt: skip
 
 
@@ -100,13 +103,17 @@ def rows_of_run(run: str, args) -> list[dict]:
         raise SystemExit(f"looker_refit: {run} is a {config.method} run; it needs a meta run")
     train = labelled_looks(method, config, args.rooms, args.cycles, "train", args.seed)
     test = labelled_looks(method, config, args.rooms, args.cycles, "eval", args.seed)
-    rows = [
-        {"run": run, "looker": name, "steps": 0, "lr": ""} | score(actor, *test, args.margin)
-        for name, actor in (("phi2", method.phi2), ("phi1", method.phi1))
-    ]
-    for lr in args.lr:
-        actor = refit(method.phi2, *train[:2], args.steps, lr, args.batch)
-        rows.append({"run": run, "looker": "phi2", "steps": args.steps, "lr": lr} | score(actor, *test, args.margin))
+    lookers = [("phi2", 0, "", method.phi2), ("phi1", 0, "", method.phi1)]
+    lookers += [("phi2", args.steps, lr, refit(method.phi2, *train[:2], args.steps, lr, args.batch)) for lr in args.lr]
+    rows = []
+    for name, steps, lr, actor in lookers:
+        row = {"run": run, "looker": name, "steps": steps, "lr": lr} | score(actor, *test, args.margin)
+        if args.episodes:
+            row["episodes"], looker = args.episodes, EpsilonGreedyLooker(actor, 0.0)
+            row["success_rate"] = evaluate(config, method.actor, looker, episodes=args.episodes, seed=args.seed)[
+                "success_rate"
+            ]
+        rows.append(row)
     return rows
 
 
@@ -121,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--lr", type=float, nargs="+", default=[3e-4, 1e-3], help="learning rates (3e-4 1e-3)")
     parser.add_argument("--margin", type=float, default=0.03, help="a pan's gain over holding that counts (0.03)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
+    parser.add_argument("--episodes", type=whole_number, default=0, help="held-out episodes with each looker (0)")
     parser.add_argument("--csv", help="also write the rows here")
     args = parser.parse_args(argv)
     if min(args.rooms, args.cycles, args.batch) < 1 or not all(lr > 0 for lr in args.lr):
@@ -129,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [row | where for run in args.runs for row in rows_of_run(run, args)]
     print(" | ".join(COLUMNS))
     for row in rows:
-        print(" | ".join(str(row[column]) for column in COLUMNS), flush=True)
+        print(" | ".join(str(row.get(column, "")) for column in COLUMNS), flush=True)
     if args.csv:
         write_csv(args.csv, COLUMNS, rows)
     return 0

@@ -232,13 +232,14 @@ def test_looker_refit_scores_a_meta_runs_lookers_and_refitted_copies(tmp_path):
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
     assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--bearing-bins", "12", "--out", str(out)]) == 0
     argv = [str(out), "--rooms", "4", "--cycles", "12", "--steps", "2", "--batch", "16", "--lr", "1e-3"]
-    assert looker_refit.main([*argv, "--csv", str(table)]) == 0
+    assert looker_refit.main([*argv, "--episodes", "2", "--csv", str(table)]) == 0
     rows = list(csv.DictReader(table.open()))
     assert [(r["looker"], r["steps"], r["lr"]) for r in rows] == [
         ("phi2", "0", ""),
         ("phi1", "0", ""),
         ("phi2", "2", "0.001"),
     ]
+    assert all(r["episodes"] == "2" and float(r["success_rate"]) in (0.0, 0.5, 1.0) for r in rows)
     config = load_run_config(out)
     method = make_method(config, torch.device("cpu"), start=False)
     restore_method(method, load_checkpoint(out / "checkpoint.pt"), out)
