@@ -699,6 +699,36 @@ def best_look_fig1() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
+REFIT_FIG1 = "experiments/results/looker_refit_fig1_v3.csv"
+
+
+def looker_refit_fig1() -> str:
+    """``meta``'s movers of Figure 1 with ``phi2``, ``phi1`` and copies of ``phi2`` refitted on fresh labels
+    (``experiments/looker_refit.py --episodes``): agreement with the labels on held-out cycles and held-out success,
+    mean ± 95 % interval over the runs, and the paired difference of success to ``phi1``'s."""
+    rows = read(REFIT_FIG1)
+    runs = list(dict.fromkeys(r["run"] for r in rows))
+    lookers = list(dict.fromkeys((r["looker"], r["steps"], r["lr"]) for r in rows))
+    by = {(r["run"], r["looker"], r["steps"], r["lr"]): r for r in rows}
+    lines = []
+    for looker in lookers:
+        name, steps, lr = looker
+        label = f"`{name}` refitted, {steps} steps at {lr}" if int(steps) else f"`{name}`"
+        of = [by[(run, *looker)] for run in runs]
+        paired = [
+            float(r["success_rate"]) - float(by[run, "phi1", "0", ""]["success_rate"])
+            for r, run in zip(of, runs, strict=True)
+        ]
+        difference = spread_of(*mean_ci(paired), "+.2f") if looker != ("phi1", "0", "") else ""
+        lines.append([label, spread(r["agreement"] for r in of), spread(r["success_rate"] for r in of), difference])
+    seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
+    episodes = "/".join(sorted({r["episodes"] for r in rows}))
+    command = f"python experiments/looker_refit.py {braced(runs)} --episodes {episodes} --csv {REFIT_FIG1}"
+    header = [f"looker (`meta_eps0.3`, 60 degrees, seeds {seeds})", "agreement with its labels", "held-out success"]
+    header.append("success − `phi1`'s, by run")
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+
+
 def braced(paths: list[str]) -> str:
     """``paths`` as one shell word, the part where they differ in braces (``runs/seed{0,1,2}``,
     ``runs/{meta,ia2c}/seed1``); one path as it is."""
@@ -910,6 +940,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "looker-swap": ("performance.md", looker_swap),
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
     "best-look-fig1": ("results.md", best_look_fig1),
+    "looker-refit-fig1": ("results.md", looker_refit_fig1),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
