@@ -22,7 +22,7 @@ from activeperc_rl.collection import Rollouts
 from activeperc_rl.config import A2CConfig, RunConfig, Section
 from activeperc_rl.envs import LOOKER, MOVER
 from activeperc_rl.losses import JointA2CLoss, SharedEncoderA2CLoss
-from activeperc_rl.models import JOINT, NUM_ACTIONS, NetworkConfig, make_actor, make_critic
+from activeperc_rl.models import JOINT, NUM_ACTIONS, NetworkConfig, make_actor, make_critic, stacked_views
 
 
 @dataclass
@@ -162,7 +162,7 @@ class Method:
             device=self.device,
             name=name,
             look_views=look_views,
-            frame_stack=self.network.frame_stack,
+            frame_stack=stacked_views(self.network, self.options),
         )
         self.collectors.append(collector)
         return collector

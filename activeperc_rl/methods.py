@@ -32,7 +32,7 @@ from torch import nn
 from activeperc_env.config import is_number, with_field_docs
 from activeperc_env.core import JOINT_ACTIONS, MAX_ENVS
 from activeperc_rl.config import Section, finite, int_in
-from activeperc_rl.envs import LOOKER, MOVER
+from activeperc_rl.envs import LOOKER, MAX_FRAME_STACK, MOVER
 from activeperc_rl.losses import LOOKER_CREDITS, VIEW_CREDITS, MetaEvaluationLoss
 from activeperc_rl.method_base import Iteration, Method
 from activeperc_rl.models import (
@@ -141,6 +141,9 @@ class MetaConfig(LookerOptions):
     mirror_looks: bool = False
     """With the 'best_look' and 'every_look' credits, value each look's view as the mean of the critic's value of it
     and of its mirror image: what the look is worth to a mover as able on either side of the room."""
+    looker_frames: int = 1
+    """Views of the latest cycles that phi2 and phi1 read, stacked on the image's channels (1: the view before the
+    look): a memory of where the goal was, for the looker alone; needs looker_encoder 'own'."""
 
     def checks(self) -> dict[str, tuple[bool, str]]:
         """Each field's check."""
@@ -161,6 +164,11 @@ class MetaConfig(LookerOptions):
             "mirror_looks": (
                 self.mirror_looks is False or (self.mirror_looks is True and self.looker_credit in VIEW_CREDITS),
                 f"true or false; true values every look: looker_credit one of {VIEW_CREDITS}",
+            ),
+            "looker_frames": (
+                int_in(self.looker_frames, 1, MAX_FRAME_STACK)
+                and (self.looker_frames == 1 or self.looker_encoder == "own"),
+                f"an int in 1 .. {MAX_FRAME_STACK}, 1 unless looker_encoder is 'own' (the others read one view)",
             ),
         }
 
@@ -219,7 +227,7 @@ class Meta(_MoverA2C):
         """phi2's encoder (``looker_encoder``)."""
         if self.options.looker_encoder == "mover":
             return ReadOnlyEncoder(next(m for m in self.actor.modules() if isinstance(m, Encoder)))
-        return self._encoder(bearing=self.options.looker_encoder == "own_bearing")
+        return self.network.encoder(self.env, self.options.looker_encoder == "own_bearing", self.options.looker_frames)
 
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""

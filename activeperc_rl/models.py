@@ -69,10 +69,17 @@ class NetworkConfig(Section):
             ),
         }
 
-    def encoder(self, env: EnvConfig, bearing: bool = True) -> Encoder:
+    def encoder(self, env: EnvConfig, bearing: bool = True, frames: int | None = None) -> Encoder:
         """A fresh :class:`Encoder` of these sizes for ``env``'s observation (``bearing``: with the mover's bearing
-        layout)."""
-        return make_encoder(env, self.channels, self.hidden_size, self.bearing_bins if bearing else 0, self.frame_stack)
+        layout; ``frames``: the latest views it reads, if not ``frame_stack``)."""
+        layout = self.bearing_bins if bearing else 0
+        return make_encoder(env, self.channels, self.hidden_size, layout, frames or self.frame_stack)
+
+
+def stacked_views(network: NetworkConfig, options: Section) -> int:
+    """Views of the latest cycles in each observation of a run: as many as its networks read at most (the
+    ``frame_stack`` of all of them, a method's ``looker_frames`` of its looker's)."""
+    return max(network.frame_stack, getattr(options, "looker_frames", 1))
 
 
 class Encoder(nn.Module):
@@ -81,6 +88,7 @@ class Encoder(nn.Module):
 
     With ``frames`` > 1 it reads a frame stack (``make_env(frame_stack=frames)``): the views of the latest cycles on
     the image's channels, ``(*batch, H, W, 3 * frames)``, their pans ``(*batch, frames)``, and convolves them together.
+    Given a deeper stack it reads its latest ``frames`` views (a mover of one view beside a looker that remembers).
 
     With ``bearing_bins`` the conv features are first laid out by bearing from the robot's heading instead of by
     column of the view: ``bearing_bins`` bins span every bearing the camera can see, and each bin takes the
@@ -88,9 +96,9 @@ class Encoder(nn.Module):
     zero where the camera does not look. A goal seen 40 degrees to the left then lands in the same features
     whether the camera looks ahead or 30 degrees left (:class:`BearingLayout`).
 
-    It reads the images as the env gives them, of shape ``(*batch, height, width, 3 * frames)`` with values 0 to 255
-    (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the ``(3, H, W)`` images
-    of TorchRL's ``ToTensorImage``, which are scaled to [0, 1] too) raises ``ValueError``.
+    It reads the images as the env gives them, of shape ``(*batch, height, width, 3 * stack)``, ``stack >= frames``,
+    with values 0 to 255 (``uint8``, or a float copy of them), and scales them itself; another shape (e.g. the
+    ``(3, H, W)`` images of TorchRL's ``ToTensorImage``, which are scaled to [0, 1] too) raises ``ValueError``.
 
     Args:
         height, width: the image size.
@@ -151,12 +159,14 @@ class Encoder(nn.Module):
     def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
         """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3 * frames)``, ``pan (*batch,
         frames)`` and, with a range sensor, ``ranges (*batch, range_rays)``."""
-        if tuple(image.shape[-3:]) != self.image_shape:
+        height, width, channels = self.image_shape
+        shape = tuple(image.shape[-3:])
+        if len(shape) < 3 or shape[:2] != (height, width) or shape[2] < channels or shape[2] % 3:
             raise ValueError(
-                f"the encoder reads images of shape (*batch, {', '.join(map(str, self.image_shape))}) with values "
-                f"0 to 255, as the env gives them (frame_stack={self.frames}); got shape {tuple(image.shape)} (give "
-                "the env the encoder's frame_stack, and leave out transforms that permute or scale the image, such as "
-                "ToTensorImage)"
+                f"the encoder reads images of shape (*batch, {height}, {width}, 3 * stack), stack >= {self.frames}, "
+                f"with values 0 to 255, as the env gives them (frame_stack >= {self.frames}); got shape "
+                f"{tuple(image.shape)} (give the env a frame_stack of the encoder's frames or more, and leave out "
+                "transforms that permute or scale the image, such as ToTensorImage)"
             )
         if self.kept is not None:
             key = (image, pan, ranges, torch.is_grad_enabled())
@@ -170,6 +180,8 @@ class Encoder(nn.Module):
 
     def _features(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None) -> torch.Tensor:
         batch = image.shape[:-3]
+        if image.shape[-1] > self.image_shape[2]:  # the latest views of a deeper stack
+            image, pan = image[..., -self.image_shape[2] :], pan[..., -self.frames :]
         # a fresh float copy (never the caller's tensor), scaled in place: one pass over the images fewer
         x = image.reshape(-1, *image.shape[-3:]).permute(0, 3, 1, 2).to(torch.float32, copy=True).div_(255.0)
         x = self.conv(x)

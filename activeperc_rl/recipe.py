@@ -27,7 +27,7 @@ from activeperc_env.rooms import ROOMS
 from activeperc_rl.config import A2CConfig, RunConfig, Section, load_yaml
 from activeperc_rl.method_base import Method
 from activeperc_rl.methods import METHOD_CLASSES, METHODS
-from activeperc_rl.models import NetworkConfig
+from activeperc_rl.models import NetworkConfig, stacked_views
 
 SECTIONS: dict[str, type[Section]] = {cls.NAME: cls for cls in (RunConfig, A2CConfig, NetworkConfig)}
 """The sections every method reads, by their key in YAML (the method's own and ``env`` come beside them)."""
@@ -177,6 +177,12 @@ class TrainConfig:
         own = {f.name for f in dataclasses.fields(METHOD_CLASSES[method].Options)}
         flat = {key: value for key, value in flat.items() if key not in METHOD_OPTIONS or key in own}
         return cls(method=method, env=values[ENV]).replace(**flat)
+
+    @property
+    def frame_stack(self) -> int:
+        """Views of the latest cycles in each observation of the run's envs
+        (:func:`~activeperc_rl.models.stacked_views`)."""
+        return stacked_views(self.network, self.options)
 
     def to_dict(self) -> dict:
         """The config as plain YAML-ready values: ``method``, then each section (the method's under its name)."""

@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         split="eval",
         look_views=True,
-        frame_stack=config.network.frame_stack,
+        frame_stack=config.frame_stack,
         config=config.env,
     )
     torch.manual_seed(args.seed)

@@ -49,7 +49,7 @@ def labelled_looks(method, config, rooms: int, cycles: int, split: str, seed: in
     """The looker's inputs at the looks a move followed (``rooms * cycles`` at most) in ``split``'s layouts, and their
     ``best_look`` labels and gains ``max_u Q(u) - Q(hold)``."""
     looker = EpsilonGreedyLooker(method.phi2, method.options.epsilon)
-    frames = config.network.frame_stack
+    frames = config.frame_stack
     env = make_env(rooms, looker=looker, seed=seed, split=split, look_views=True, frame_stack=frames, config=config.env)
     torch.manual_seed(seed)
     try:

@@ -201,10 +201,40 @@ def test_an_encoder_of_a_frame_stack_reads_every_view_and_pan():
     older[..., :3] = 0  # only the oldest view changes
     assert not torch.equal(encoder(older, pans, ranges), features)
     assert not torch.equal(encoder(image, pans + torch.tensor([0.5, 0, 0]), ranges), features)
-    with pytest.raises(ValueError, match=r"\(\*batch, 60, 80, 9\).*frame_stack=3"):
+    with pytest.raises(ValueError, match=r"\(\*batch, 60, 80, 3 \* stack\), stack >= 3.*frame_stack >= 3"):
         encoder(image[..., :3], pans[:, :1], ranges)
     with pytest.raises(ValueError, match="bearing_bins=12 lays out one view"):
         make_encoder(EnvConfig(), (4,), 8, bearing_bins=12, frames=2)
+
+
+def test_an_encoder_given_a_deeper_stack_reads_its_latest_views():
+    torch.manual_seed(0)
+    encoder = make_encoder(EnvConfig(), (4,), 8, frames=2)
+    image, pans, ranges = torch.randint(0, 256, (2, 60, 80, 12), dtype=torch.uint8), torch.rand(2, 4), torch.ones(2, 13)
+    latest = encoder(image[..., 6:], pans[:, 2:], ranges)
+    assert torch.equal(encoder(image, pans, ranges), latest)
+    image[..., :6], pans[:, :2] = 0, 0.0  # the older views are not read
+    assert torch.equal(encoder(image, pans, ranges), latest)
+
+
+def test_a_meta_looker_that_remembers_reads_a_stack_beside_a_mover_of_one_view():
+    config = TrainConfig.from_options(
+        num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, bearing_bins=6, looker_frames=3, looker_lr=0.01,
+        env={"version": 3},
+    )  # fmt: skip
+    assert config.frame_stack == 3 and config.network.frame_stack == 1
+    meta = make_method(config, torch.device("cpu"))
+    phi2 = _parameters(meta.phi2)
+    try:
+        d2 = meta._next(meta.e2)
+        meta.iterate()
+    finally:
+        meta.close()
+    assert d2.get(("looker", "observation", "image")).shape[-1] == 9
+    assert d2.get(("looker", "observation", "pan")).shape[-1] == 3
+    assert [e.frames for e in _encoders(meta.phi2) + _encoders(meta.phi1)] == [3, 3]
+    assert [e.frames for e in _encoders(meta.actor)] == [1]
+    assert any(not torch.equal(a, b) for a, b in zip(phi2, _parameters(meta.phi2), strict=True))
 
 
 def test_curriculum_keeps_its_switch_point_on_resume():

@@ -514,6 +514,14 @@ def test_a_frame_stack_with_the_bearing_layout_is_refused():
     assert TrainConfig.from_options(frame_stack=2, bearing_bins=0).network.frame_stack == 2
 
 
+def test_a_looker_that_remembers_on_an_encoder_of_one_view_is_refused():
+    with pytest.raises(
+        ValueError, match=re.escape("meta.looker_frames=4 is invalid: expected an int in 1 .. 16, 1 unless")
+    ):
+        TrainConfig.from_options(looker_frames=4, looker_encoder="mover")
+    assert TrainConfig.from_options(looker_frames=4).frame_stack == 4
+
+
 def test_mirrored_looks_without_a_credit_that_values_every_look_are_refused():
     with pytest.raises(ValueError, match=re.escape("meta.mirror_looks=True is invalid: expected true or false; true")):
         TrainConfig.from_options(mirror_looks=True, looker_credit="look")
