@@ -16,6 +16,10 @@ holding by more than ``--margin`` (``agreement_pan``), and the cross-entropy. A 
 the run's own ``phi2`` says the labels are predictable from the view and the run's looker had not learned them.
 With ``--episodes N`` the run's mover also plays ``N`` held-out episodes with each of them, greedy, as its looker
 (``success_rate``): does a looker that fits its labels better take its mover further?
+
+``--fresh-frames K...`` also fits untrained lookers (``phi2``'s network, seeded alike) that read the views of the
+latest ``K`` cycles (``looker_frames``), ``--fresh-steps`` Adam steps each: does a looker that remembers predict
+the labels better than one of the same training that sees only the view before its look?
 """
 
 from __future__ import annotations
@@ -31,10 +35,10 @@ from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from activeperc_env.arguments import ArgumentParser, whole_number
 from activeperc_env.core import HOLD
-from activeperc_rl.envs import LOOKER, make_env
+from activeperc_rl.envs import LOOKER, MAX_FRAME_STACK, make_env
 from activeperc_rl.evaluate import evaluate
 from activeperc_rl.losses import best_looks
-from activeperc_rl.models import EpsilonGreedyLooker
+from activeperc_rl.models import EpsilonGreedyLooker, make_actor, start_holding
 from activeperc_rl.runtime import portable
 from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restored_method
@@ -47,7 +51,7 @@ COLUMNS = (
 
 def labelled_looks(method, config, rooms: int, cycles: int, split: str, seed: int):
     """The looker's inputs at the looks a move followed (``rooms * cycles`` at most) in ``split``'s layouts, and their
-    ``best_look`` labels and gains ``max_u Q(u) - Q(hold)``."""
+    ``best_look`` labels and gains ``max_u Q(u) - Q(hold)`` (the inputs stack ``config.frame_stack`` views)."""
     looker = EpsilonGreedyLooker(method.phi2, method.options.epsilon)
     frames = config.frame_stack
     env = make_env(rooms, looker=looker, seed=seed, split=split, look_views=True, frame_stack=frames, config=config.env)
@@ -96,15 +100,34 @@ def refit(phi2, record, labels: torch.Tensor, steps: int, lr: float, batch: int)
     return actor
 
 
+def fresh_looker(config, frames: int, seed: int):
+    """An untrained ``phi2`` of ``config``'s networks (its output layer zero: every look alike) reading the latest
+    ``frames`` views."""
+    torch.manual_seed(seed)
+    actor = make_actor(config.network.encoder(config.env, False, frames), config.network.hidden_size, LOOKER)
+    start_holding(actor, 1 / 3)
+    return actor
+
+
 def rows_of_run(run: str, args) -> list[dict]:
     """Every looker's scores on ``run``'s held-out cycles."""
     config, method = restored_method(load_checkpoint(f"{run}/{CHECKPOINT}"), run, torch.device("cpu"))
     if config.method != "meta":
         raise SystemExit(f"looker_refit: {run} is a {config.method} run; it needs a meta run")
+    if args.fresh_frames and config.options.looker_encoder != "own":
+        raise SystemExit(f"looker_refit: --fresh-frames needs a run of looker_encoder 'own'; {run} has another")
+    if max(args.fresh_frames, default=1) > config.frame_stack:  # the inputs stack the most views any looker reads
+        config = config.replace(looker_frames=max(args.fresh_frames))
     train = labelled_looks(method, config, args.rooms, args.cycles, "train", args.seed)
     test = labelled_looks(method, config, args.rooms, args.cycles, "eval", args.seed)
     lookers = [("phi2", 0, "", method.phi2), ("phi1", 0, "", method.phi1)]
     lookers += [("phi2", args.steps, lr, refit(method.phi2, *train[:2], args.steps, lr, args.batch)) for lr in args.lr]
+    for frames in args.fresh_frames:
+        fresh = fresh_looker(config, frames, args.seed)
+        name = f"fresh, {frames} view{'s' if frames > 1 else ''}"
+        lookers += [
+            (name, args.fresh_steps, lr, refit(fresh, *train[:2], args.fresh_steps, lr, args.batch)) for lr in args.lr
+        ]
     rows = []
     for name, steps, lr, actor in lookers:
         row = {"run": run, "looker": name, "steps": steps, "lr": lr} | score(actor, *test, args.margin)
@@ -129,10 +152,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--margin", type=float, default=0.03, help="a pan's gain over holding that counts (0.03)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
     parser.add_argument("--episodes", type=whole_number, default=0, help="held-out episodes with each looker (0)")
+    parser.add_argument("--fresh-frames", type=whole_number, nargs="*", default=[], help="views of fresh lookers")
+    parser.add_argument("--fresh-steps", type=whole_number, default=2000, help="Adam steps of each fresh looker (2000)")
     parser.add_argument("--csv", help="also write the rows here")
     args = parser.parse_args(argv)
     if min(args.rooms, args.cycles, args.batch) < 1 or not all(lr > 0 for lr in args.lr):
         parser.error("--rooms, --cycles and --batch must be >= 1 and every --lr > 0")
+    if not all(1 <= frames <= MAX_FRAME_STACK for frames in args.fresh_frames):
+        parser.error(f"--fresh-frames {args.fresh_frames}: expected views in 1 .. {MAX_FRAME_STACK}")
     where = {"machine": portable.machine(), "date": datetime.date.today().isoformat()}
     rows = [row | where for run in args.runs for row in rows_of_run(run, args)]
     print(" | ".join(COLUMNS))

@@ -25,6 +25,7 @@ EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
         ("memory_mover_training.py", ["--memory", "0"], "--frames, --episodes and --memory must be >= 1"),
         ("best_look_labels.py", ["RUN", "--bin", "0"], "--bin must be >= 1, got 0"),
         ("looker_refit.py", ["RUN", "--lr", "0"], "--rooms, --cycles and --batch must be >= 1 and every --lr > 0"),
+        ("looker_refit.py", ["RUN", "--fresh-frames", "0"], "--fresh-frames [0]: expected views in 1 .. 16"),
         ("looker_swap.py", ["RUN", "--episodes", "0"], "--episodes must be >= 1, got 0"),
         ("looker_swap.py", ["no-such-run"], "'no-such-run': no checkpoint.pt there"),
         ("looker_swap.py", ["RUN", "--lookers-of", "other"], "'RUN', 'other': no checkpoint.pt there"),
@@ -232,12 +233,15 @@ def test_looker_refit_scores_a_meta_runs_lookers_and_refitted_copies(tmp_path):
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
     assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--bearing-bins", "12", "--out", str(out)]) == 0
     argv = [str(out), "--rooms", "4", "--cycles", "12", "--steps", "2", "--batch", "16", "--lr", "1e-3"]
-    assert looker_refit.main([*argv, "--episodes", "2", "--csv", str(table)]) == 0
+    fresh = ["--fresh-frames", "1", "3", "--fresh-steps", "3"]
+    assert looker_refit.main([*argv, *fresh, "--episodes", "2", "--csv", str(table)]) == 0
     rows = list(csv.DictReader(table.open()))
     assert [(r["looker"], r["steps"], r["lr"]) for r in rows] == [
         ("phi2", "0", ""),
         ("phi1", "0", ""),
         ("phi2", "2", "0.001"),
+        ("fresh, 1 view", "3", "0.001"),
+        ("fresh, 3 views", "3", "0.001"),
     ]
     assert all(r["episodes"] == "2" and float(r["success_rate"]) in (0.0, 0.5, 1.0) for r in rows)
     config = load_run_config(out)
