@@ -95,7 +95,7 @@ def evaluate(
         seed=seed,
         split="eval",
         backend=config.run.backend,
-        frame_stack=config.frame_stack,
+        frame_stack=config.stacked_views,
         look_views=look_views,
         config=config.env,
     )

@@ -179,7 +179,7 @@ class TrainConfig:
         return cls(method=method, env=values[ENV]).replace(**flat)
 
     @property
-    def frame_stack(self) -> int:
+    def stacked_views(self) -> int:
         """Views of the latest cycles in each observation of the run's envs
         (:func:`~activeperc_rl.models.stacked_views`)."""
         return stacked_views(self.network, self.options)

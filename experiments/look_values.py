@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         split="eval",
         look_views=True,
-        frame_stack=config.frame_stack,
+        frame_stack=config.stacked_views,
         config=config.env,
     )
     torch.manual_seed(args.seed)

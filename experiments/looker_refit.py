@@ -51,9 +51,9 @@ COLUMNS = (
 
 def labelled_looks(method, config, rooms: int, cycles: int, split: str, seed: int):
     """The looker's inputs at the looks a move followed (``rooms * cycles`` at most) in ``split``'s layouts, and their
-    ``best_look`` labels and gains ``max_u Q(u) - Q(hold)`` (the inputs stack ``config.frame_stack`` views)."""
+    ``best_look`` labels and gains ``max_u Q(u) - Q(hold)`` (the inputs stack ``config.stacked_views`` views)."""
     looker = EpsilonGreedyLooker(method.phi2, method.options.epsilon)
-    frames = config.frame_stack
+    frames = config.stacked_views
     env = make_env(rooms, looker=looker, seed=seed, split=split, look_views=True, frame_stack=frames, config=config.env)
     torch.manual_seed(seed)
     try:
@@ -116,7 +116,7 @@ def rows_of_run(run: str, args) -> list[dict]:
         raise SystemExit(f"looker_refit: {run} is a {config.method} run; it needs a meta run")
     if args.fresh_frames and config.options.looker_encoder != "own":
         raise SystemExit(f"looker_refit: --fresh-frames needs a run of looker_encoder 'own'; {run} has another")
-    if max(args.fresh_frames, default=1) > config.frame_stack:  # the inputs stack the most views any looker reads
+    if max(args.fresh_frames, default=1) > config.stacked_views:  # the inputs stack the most views any looker reads
         config = config.replace(looker_frames=max(args.fresh_frames))
     train = labelled_looks(method, config, args.rooms, args.cycles, "train", args.seed)
     test = labelled_looks(method, config, args.rooms, args.cycles, "eval", args.seed)

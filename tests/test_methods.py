@@ -222,7 +222,7 @@ def test_a_meta_looker_that_remembers_reads_a_stack_beside_a_mover_of_one_view()
         num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, bearing_bins=6, looker_frames=3, looker_lr=0.01,
         env={"version": 3},
     )  # fmt: skip
-    assert config.frame_stack == 3 and config.network.frame_stack == 1
+    assert config.stacked_views == 3 and config.network.frame_stack == 1
     meta = make_method(config, torch.device("cpu"))
     phi2 = _parameters(meta.phi2)
     try:

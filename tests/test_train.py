@@ -519,7 +519,7 @@ def test_a_looker_that_remembers_on_an_encoder_of_one_view_is_refused():
         ValueError, match=re.escape("meta.looker_frames=4 is invalid: expected an int in 1 .. 16, 1 unless")
     ):
         TrainConfig.from_options(looker_frames=4, looker_encoder="mover")
-    assert TrainConfig.from_options(looker_frames=4).frame_stack == 4
+    assert TrainConfig.from_options(looker_frames=4).stacked_views == 4
 
 
 def test_mirrored_looks_without_a_credit_that_values_every_look_are_refused():
