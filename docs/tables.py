@@ -713,7 +713,10 @@ def looker_refit_fig1() -> str:
     lines = []
     for looker in lookers:
         name, steps, lr = looker
-        label = f"`{name}` refitted, {steps} steps at {lr}" if int(steps) else f"`{name}`"
+        if name.startswith("fresh"):  # "fresh, 4 views": an untrained looker fitted on the same labels
+            label = f"untrained looker of {name.split(', ')[1]}, {steps} steps at {lr}"
+        else:
+            label = f"`{name}` refitted, {steps} steps at {lr}" if int(steps) else f"`{name}`"
         of = [by[(run, *looker)] for run in runs]
         paired = [
             float(r["success_rate"]) - float(by[run, "phi1", "0", ""]["success_rate"])
@@ -723,7 +726,9 @@ def looker_refit_fig1() -> str:
         lines.append([label, spread(r["agreement"] for r in of), spread(r["success_rate"] for r in of), difference])
     seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
     episodes = "/".join(sorted({r["episodes"] for r in rows}))
-    command = f"python experiments/looker_refit.py {braced(runs)} --episodes {episodes} --csv {REFIT_FIG1}"
+    frames = sorted({int(r["looker"].split(", ")[1].split()[0]) for r in rows if r["looker"].startswith("fresh")})
+    fresh = f" --fresh-frames {' '.join(map(str, frames))}" if frames else ""
+    command = f"python experiments/looker_refit.py {braced(runs)}{fresh} --episodes {episodes} --csv {REFIT_FIG1}"
     header = [f"looker (`meta_eps0.3`, 60 degrees, seeds {seeds})", "agreement with its labels", "held-out success"]
     header.append("success − `phi1`'s, by run")
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
