@@ -700,21 +700,23 @@ def best_look_fig1() -> str:
 
 
 REFIT_FIG1 = "experiments/results/looker_refit_fig1_v3.csv"
+REFIT_MEMORY_FIG1 = "experiments/results/looker_refit_memory_fig1_v3.csv"
 
 
-def looker_refit_fig1() -> str:
-    """``meta``'s movers of Figure 1 with ``phi2``, ``phi1`` and copies of ``phi2`` refitted on fresh labels
-    (``experiments/looker_refit.py --episodes``): agreement with the labels on held-out cycles and held-out success,
-    mean ± 95 % interval over the runs, and the paired difference of success to ``phi1``'s."""
-    rows = read(REFIT_FIG1)
+def looker_refit_fig1(path: str = REFIT_FIG1, shown: tuple[str, ...] = ()) -> str:
+    """``meta``'s movers of Figure 1 with ``phi2``, ``phi1``, copies of ``phi2`` refitted on fresh labels and untrained
+    lookers fitted on them (``experiments/looker_refit.py --episodes``; ``shown``: only these lookers, by name
+    prefix): agreement with the labels on held-out cycles and held-out success, mean ± 95 % interval over the runs,
+    and the paired difference of success to ``phi1``'s."""
+    rows = read(path)
     runs = list(dict.fromkeys(r["run"] for r in rows))
     lookers = list(dict.fromkeys((r["looker"], r["steps"], r["lr"]) for r in rows))
     by = {(r["run"], r["looker"], r["steps"], r["lr"]): r for r in rows}
     lines = []
-    for looker in lookers:
+    for looker in (looker for looker in lookers if not shown or looker[0].startswith(shown)):
         name, steps, lr = looker
         if name.startswith("fresh"):  # "fresh, 4 views": an untrained looker fitted on the same labels
-            label = f"untrained looker of {name.split(', ')[1]}, {steps} steps at {lr}"
+            label = f"untrained, {name.split(', ')[1]}, {steps} steps"
         else:
             label = f"`{name}` refitted, {steps} steps at {lr}" if int(steps) else f"`{name}`"
         of = [by[(run, *looker)] for run in runs]
@@ -727,8 +729,10 @@ def looker_refit_fig1() -> str:
     seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
     episodes = "/".join(sorted({r["episodes"] for r in rows}))
     frames = sorted({int(r["looker"].split(", ")[1].split()[0]) for r in rows if r["looker"].startswith("fresh")})
-    fresh = f" --fresh-frames {' '.join(map(str, frames))}" if frames else ""
-    command = f"python experiments/looker_refit.py {braced(runs)}{fresh} --episodes {episodes} --csv {REFIT_FIG1}"
+    options = f" --fresh-frames {' '.join(map(str, frames))}" if frames else ""
+    rates = sorted({r["lr"] for r in rows if r["lr"]}, key=float)
+    options += f" --lr {' '.join(rates)}" if rates != ["0.0003", "0.001"] else ""
+    command = f"python experiments/looker_refit.py {braced(runs)}{options} --episodes {episodes} --csv {path}"
     header = [f"looker (`meta_eps0.3`, 60 degrees, seeds {seeds})", "agreement with its labels", "held-out success"]
     header.append("success − `phi1`'s, by run")
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
@@ -946,6 +950,7 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
     "best-look-fig1": ("results.md", best_look_fig1),
     "looker-refit-fig1": ("results.md", looker_refit_fig1),
+    "looker-memory-fig1": ("results.md", lambda: looker_refit_fig1(REFIT_MEMORY_FIG1, ("phi1", "fresh"))),
     "recipe-levers": ("performance.md", recipe_levers),
     "many-rooms": ("performance.md", many_rooms),
     "default-speed": (
