@@ -76,10 +76,11 @@ class Method:
         self.learning_rates: dict[str, float] = {}  # each optimizer's learning rate at the first frame
 
     # ---------------------------------------------------------------- construction helpers
-    def _encoder(self, bearing: bool = True):
-        """A fresh encoder (``bearing``: with the mover's bearing layout), built on the CPU (the same initial weights
-        on every device); the networks around it move to the device."""
-        return self.network.encoder(self.env, bearing)
+    def _encoder(self, bearing: bool = True, frames: int | None = None):
+        """A fresh encoder (``bearing``: with the mover's bearing layout; ``frames``: the latest views it reads, if not
+        ``frame_stack``), built on the CPU (the same initial weights on every device); the networks around it move to
+        the device."""
+        return self.network.encoder(self.env, bearing, frames)
 
     def _a2c(self, actor, critic, agent: str, action_agent: str | None = None) -> A2CLoss:
         """An A2C loss on ``agent``'s reward for ``actor`` (whose action lies under ``action_agent``); a look's entropy

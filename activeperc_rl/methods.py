@@ -227,7 +227,7 @@ class Meta(_MoverA2C):
         """phi2's encoder (``looker_encoder``)."""
         if self.options.looker_encoder == "mover":
             return ReadOnlyEncoder(next(m for m in self.actor.modules() if isinstance(m, Encoder)))
-        return self.network.encoder(self.env, self.options.looker_encoder == "own_bearing", self.options.looker_frames)
+        return self._encoder(self.options.looker_encoder == "own_bearing", self.options.looker_frames)
 
     def start(self) -> None:
         """Build E1 (phi1 in the loop) and E2 (epsilon-greedy phi2), with shared layout streams by default."""

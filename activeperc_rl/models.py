@@ -157,8 +157,9 @@ class Encoder(nn.Module):
             self.kept = None
 
     def forward(self, image: torch.Tensor, pan: torch.Tensor, ranges: torch.Tensor | None = None) -> torch.Tensor:
-        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3 * frames)``, ``pan (*batch,
-        frames)`` and, with a range sensor, ``ranges (*batch, range_rays)``."""
+        """Features of shape ``(*batch, hidden_size)`` from ``image (*batch, H, W, 3 * stack)``, ``pan (*batch,
+        stack)`` (``stack >= frames``: the latest ``frames`` views are read) and, with a range sensor, ``ranges
+        (*batch, range_rays)``."""
         height, width, channels = self.image_shape
         shape = tuple(image.shape[-3:])
         if len(shape) < 3 or shape[:2] != (height, width) or shape[2] < channels or shape[2] % 3:
