@@ -49,6 +49,16 @@ episode change nothing and get no term. The loss is the REINFORCE loss above wit
 ``M(tau_k)`` (importance-weighted the same way with ``behaviour_epsilon``); ``D1`` then only supplies the
 reported ``baseline``.
 
+With ``credit="look_return"`` each look is credited past its own cycle: with the value it added and then the mover's
+advantage at the next move, ``A_{t+1}`` (GAE over the following moves, the looks among them, as the mover's A2C
+estimates it on ``D2``, read at the ``advantage`` key)::
+
+    M_t = V_w2(s'_t) - V_w2(s_bar_t) + A_{t+1}  =  G^lambda(s'_t) - V_w2(s_bar_t)
+
+the lambda-return from the view after the look against the value of the view before it: a look that pays only
+cycles later (a pan on the way to a goal that is not yet in view) gets its due. ``A_{t+1}`` is 0 where step
+``t + 1`` lies outside the rollout or is padding.
+
 With ``credit="every_look"`` the critic values the view of every look ``u`` in each cycle, ``Q_t(u) =
 V_w2(s'_t(u))`` (the views recorded under ``("looker", "look_views")``, :func:`~activeperc_rl.envs.make_env`'s
 ``look_views``), and ``pi_phi2`` follows the expected gradient of ``sum_u pi_phi2(u | s_bar_t) Q_t(u)`` instead of
@@ -109,7 +119,7 @@ __all__ = [
     "trajectory_means",
 ]  # fmt: skip
 
-LOOKER_CREDITS = ("trajectory", "look", "every_look", "best_look")
+LOOKER_CREDITS = ("trajectory", "look", "look_return", "every_look", "best_look")
 """What :class:`MetaEvaluationLoss` credits each look with (its ``credit``)."""
 VIEW_CREDITS = ("every_look", "best_look")
 """The credits that value the view of every look: D2 must record them (``make_env(look_views=True)``)."""
@@ -271,8 +281,9 @@ class MetaEvaluationLoss(LossModule):
         reduction: ``"mean"`` divides the sums over steps by the number of valid steps of ``D2``,
             ``"sum"`` does not.
         credit: ``"trajectory"`` (the paper): each look gets its trajectory's ``M(tau_k)``; ``"look"``: each look
-            gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"every_look"`` and ``"best_look"``: every look of each
-            cycle is valued (see the module docstring).
+            gets ``M_t = V_w2(s'_t) - V_w2(s_bar_t)``; ``"look_return"``: that plus the mover's advantage at the next
+            move (``D2`` must hold it at the ``advantage`` key); ``"every_look"`` and ``"best_look"``: every look of
+            each cycle is valued (see the module docstring).
         mirrored: with ``"every_look"`` and ``"best_look"``, value each look's view as the mean of the critic's
             value of it and of its mirror image (flipped left to right, pan negated, range rays reversed): what the
             look is worth to a mover as able on either side.
@@ -303,6 +314,8 @@ class MetaEvaluationLoss(LossModule):
                 Defaults to ``"next"``.
             looker_action (NestedKey): the look ``u^c_t``, relative to ``looker_record``.
                 Defaults to ``("looker", "action")``.
+            advantage (NestedKey): the mover's advantage of each step of ``D2`` (``credit="look_return"`` only).
+                Defaults to ``"advantage"``.
         """
 
         value: NestedKey = "state_value"
@@ -310,6 +323,7 @@ class MetaEvaluationLoss(LossModule):
         mask: NestedKey = ("collector", "mask")
         looker_record: NestedKey = "next"
         looker_action: NestedKey = ("looker", "action")
+        advantage: NestedKey = "advantage"
 
     default_keys = _AcceptedKeys
     tensor_keys: _AcceptedKeys
@@ -393,6 +407,8 @@ class MetaEvaluationLoss(LossModule):
         in_keys = [keys.done, keys.mask, _join(record, keys.looker_action)]
         in_keys += [_join(record, key) for key in self.looker_actor.in_keys]
         in_keys += list(self.critic.in_keys) + list(self.reference_critic.in_keys)
+        if self.credit == "look_return":
+            in_keys.append(keys.advantage)
         return list(dict.fromkeys(in_keys))
 
     @property
@@ -498,6 +514,7 @@ class MetaEvaluationLoss(LossModule):
             meta = (values - baseline).detach()
             step_credit = meta[ids[mask]]
         else:  # a look after the episode's last move counts for nothing
+            valid = mask
             done = _flags(tensordict.get(keys.done), tensordict.batch_size, "tensordict (D2)", keys.done)
             mask = mask & ~done
             if not mask.any():
@@ -508,6 +525,8 @@ class MetaEvaluationLoss(LossModule):
                 return self._every_look(record, mask, baseline, num, num_ref)
             # each look's own value difference
             step_credit = meta = self._held("look", lambda: self._look_values(record, mask))
+            if self.credit == "look_return":
+                step_credit = meta = meta + self._held("ahead", lambda: self._advantage_ahead(tensordict, valid, mask))
 
         # REINFORCE on the valid steps of D2, each weighted by its credit.
         steps = record.select(*self.looker_actor.in_keys, keys.looker_action, strict=False)[mask]
@@ -602,6 +621,22 @@ class MetaEvaluationLoss(LossModule):
         with torch.no_grad():
             values = [self.critic(td).get(self.tensor_keys.value).reshape(-1) for td in (after, before)]
         return (values[0] - values[1]).detach()
+
+    def _advantage_ahead(self, tensordict: TensorDictBase, valid: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """The mover's advantage at the step after each step of ``mask`` (0 past the rollout's end or on padding)."""
+        key = self.tensor_keys.advantage
+        advantage = tensordict.get(key, None)
+        if advantage is None:
+            raise ValueError(
+                f"credit='look_return' needs the mover's advantage of each step of D2 at {key!r} (its A2C loss's "
+                "value estimator writes it)"
+            )
+        advantage = _as_2d(advantage.detach(), "the advantage")
+        if advantage.shape != valid.shape:
+            raise ValueError(f"the advantage must have D2's shape {tuple(valid.shape)}, got {tuple(advantage.shape)}")
+        ahead = torch.zeros_like(advantage)
+        ahead[:, :-1] = torch.where(valid[:, 1:], advantage[:, 1:], 0.0)
+        return ahead[mask]
 
     def _looker_group(self) -> str:
         """The group under which the looker's record holds ``s_bar`` (the first entry of its action key)."""

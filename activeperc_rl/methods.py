@@ -111,7 +111,8 @@ class MetaConfig(LookerOptions):
     looker_credit: str = "best_look"
     """What each look of D2 is credited with: 'best_look' (phi2 learns which look's view the mover's critic values
     most), 'trajectory' (the paper: its trajectory's meta-evaluator), 'look' (the value the look added,
-    V(s') - V(s_bar)) or 'every_look' (expected over the three looks' values)."""
+    V(s') - V(s_bar)), 'look_return' (that plus the mover's advantage at the next move: the lambda-return after the
+    look against V(s_bar)) or 'every_look' (expected over the three looks' values)."""
     looker_lr: float = 3e-4
     """Adam learning rate of phi2 (the paper's preset: 3e-5)."""
     looker_optimizer: str = "adam"
@@ -247,9 +248,10 @@ class Meta(_MoverA2C):
         options = self.options
         d1, d2 = self._next(self.e1), self._next(self.e2)
         frames, (returns, successes) = d1.numel() + d2.numel(), finished_episodes(d1)
+        looker_d2 = self._with_mover_advantage(d2) if options.looker_credit == "look_return" else d2
         with self.meta_loss.same_rollouts():
             for _ in range(options.looker_steps):
-                losses = self._step("looker", self.meta_loss, d2, d1)
+                losses = self._step("looker", self.meta_loss, looker_d2, d1)
         soft_update(self.phi1, self.phi2, options.alpha)
         if options.mover_rollouts == "all":
             both = torch.cat([d.exclude(LOOKER, ("next", LOOKER)) for d in (d1, d2)], 0)
@@ -271,6 +273,14 @@ class Meta(_MoverA2C):
         losses["meta/e1_pan_rate"] = _pan_rate(d1)
         losses["meta/e2_pan_rate"] = _pan_rate(d2)
         return Iteration(frames, returns, successes, losses)
+
+    def _with_mover_advantage(self, rollout: TensorDictBase) -> TensorDictBase:
+        """A copy of ``rollout`` with the mover's GAE advantage of each step (by w1, which is w2 until the mover's
+        update), what the ``look_return`` credit reads past each look."""
+        rollout = rollout.clone(False)
+        with torch.no_grad():
+            self.mover_loss.value_estimator(rollout)
+        return rollout
 
     def policy(self):
         """The mover with phi1 (the soft-updated looker) in the loop, as at test time in the paper, picking its

@@ -327,6 +327,21 @@ def test_credit_per_look_is_the_value_the_look_added():
     assert loss(look_td(), reference_td())["loss_looker"].item() == pytest.approx(3.75 * math.log(2.0))
 
 
+def test_credit_of_a_look_and_its_return_adds_the_movers_advantage_at_the_next_move():
+    """look_td's credits (2, none, -1; 2, 0, padded) plus the advantage of the step after each look: room 0 t0
+    gets t1's 20 (the move that ended the episode), t2 none (past the rollout); room 1 t0 gets 50, t1 none (t2 is
+    padding): 22, -1, 52, 0."""
+    td = look_td()
+    td.set("advantage", torch.tensor([[10.0, 20.0, 30.0], [40.0, 50.0, 60.0]]).unsqueeze(-1))
+    loss = MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="look_return")
+    out = loss(td, reference_td())
+    assert out["meta_value"].item() == pytest.approx(73 / 4)
+    assert out["loss_looker"].item() == pytest.approx(73 / 4 * math.log(3.0))
+    assert "advantage" in loss.in_keys
+    with pytest.raises(ValueError, match="needs the mover's advantage of each step of D2 at 'advantage'"):
+        loss(look_td(), reference_td())
+
+
 def test_credit_per_look_needs_a_look_that_a_move_followed():
     td = make_td(values=[[0.0, 0.0]], done=[[T_, T_]])
     td.set(("next", *PAN), torch.zeros(1, 2, 1))

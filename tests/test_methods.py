@@ -526,6 +526,22 @@ def test_a_meta_iteration_that_values_every_look_draws_their_views_and_steps_phi
     assert any(not torch.equal(a, b) for a, b in zip(phi2, _parameters(meta.phi2), strict=True))
 
 
+def test_a_meta_iteration_with_the_look_return_credit_reads_the_movers_advantage_of_a_copy_of_d2():
+    config = TrainConfig.from_options(num_envs=2, rollout_length=4, channels=(4,), hidden_size=8, looker_lr=0.01,
+                         looker_credit="look_return", looker_importance_weights=True, env={"version": 3})  # fmt: skip
+    meta = make_method(config, torch.device("cpu"))
+    phi2 = _parameters(meta.phi2)
+    try:
+        d2 = meta._next(meta.e2)
+        copy = meta._with_mover_advantage(d2)
+        meta.iterate()
+    finally:
+        meta.close()
+    assert copy.get("advantage").shape == (2, 4, 1) and copy.get("advantage").abs().sum() > 0
+    assert "advantage" not in d2.keys() and ("next", "state_value") not in d2.keys(True)  # the mover's D2 as it was
+    assert any(not torch.equal(a, b) for a, b in zip(phi2, _parameters(meta.phi2), strict=True))
+
+
 @pytest.mark.parametrize("shared_seeds", [True, False])
 def test_e2_explores_with_epsilon_on_e1s_layouts_unless_told_otherwise(shared_seeds):
     config = TrainConfig.from_options(num_envs=4, rollout_length=8, channels=(4,), hidden_size=8, epsilon=1.0,
