@@ -13,12 +13,13 @@ goal showed in the mover's view. The figure
 has the learned looker's pan against the goal's bearing (a tracking camera lies on the diagonal, a held one on
 the zero line) and, for both lookers, how often the goal is in view at each bearing. Printed (and ``--csv``):
 per looker, the held-out success rate, the pan rate (looks that are not 'hold') and the share of cycles with the
-goal in view, overall and with the goal outside the forward camera's field of view.
+goal in view, overall and with the goal inside and outside the forward camera's field of view.
 """
 
 from __future__ import annotations
 
 import csv
+import datetime
 from pathlib import Path
 
 import matplotlib
@@ -33,9 +34,13 @@ from activeperc_env.scripted import goal_in_view, wrap  # noqa: E402
 from activeperc_rl.envs import LOOKER, MOVER, latest_view  # noqa: E402
 from activeperc_rl.evaluate import evaluate, load_policy  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
+from activeperc_rl.runtime import portable  # noqa: E402
 from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
 
-COLUMNS = ("run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_outside_fov", "cycles")
+COLUMNS = (
+    "run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_inside_fov", "in_view_outside_fov",
+    "cycles", "machine", "date",
+)  # fmt: skip
 BEARING_BINS = np.linspace(-180, 180, 25)
 
 
@@ -75,8 +80,11 @@ def summary(run: str, looker: str, record: dict[str, np.ndarray], fov: float) ->
         "success": f"{record['success_rate']:.3f}",
         "pan_rate": f"{record['looked'].mean():.3f}",
         "goal_in_view": f"{record['seen'].mean():.3f}",
+        "in_view_inside_fov": f"{record['seen'][~outside].mean():.3f}",
         "in_view_outside_fov": f"{record['seen'][outside].mean():.3f}",
         "cycles": len(record["seen"]),
+        "machine": portable.machine(),
+        "date": datetime.date.today().isoformat(),
     }
 
 
