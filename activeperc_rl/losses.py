@@ -145,10 +145,10 @@ def mirror(td: TensorDictBase) -> TensorDictBase:
     return mirrored
 
 
-def best_looks(values: torch.Tensor) -> torch.Tensor:
+def best_looks(values: torch.Tensor, margin: float = 0.0) -> torch.Tensor:
     """The ``best_look`` label of each cycle from the critic's values of its looks' views ``(cycles, looks)``: the look
-    valued most, 'hold' unless a pan's view is valued above holding's."""
-    return torch.where(values.max(-1).values > values[:, HOLD], values.argmax(-1), HOLD)
+    valued most, 'hold' unless a pan's view is valued above holding's by more than ``margin``."""
+    return torch.where(values.max(-1).values > values[:, HOLD] + margin, values.argmax(-1), HOLD)
 
 
 def view_values(
@@ -287,6 +287,8 @@ class MetaEvaluationLoss(LossModule):
         mirrored: with ``"every_look"`` and ``"best_look"``, value each look's view as the mean of the critic's
             value of it and of its mirror image (flipped left to right, pan negated, range rays reversed): what the
             look is worth to a mover as able on either side.
+        margin: with ``"best_look"``, a pan is the label only where its view is valued above holding's by more than
+            this.
 
     Calling the loss as ``loss(D2, D1)`` returns a tensordict with ``loss_looker``, ``loss_entropy``
     (unless ``entropy_coeff == 0``) and, detached: ``entropy`` (mean over steps), ``importance_weight`` (mean
@@ -344,6 +346,7 @@ class MetaEvaluationLoss(LossModule):
         reduction: str = "mean",
         credit: str = "trajectory",
         mirrored: bool = False,
+        margin: float = 0.0,
     ):
         if reduction not in _REDUCTIONS:
             raise ValueError(f"reduction must be one of {_REDUCTIONS}, got {reduction!r}.")
@@ -355,6 +358,8 @@ class MetaEvaluationLoss(LossModule):
             and 0 <= behaviour_epsilon <= 1
         ):
             raise ValueError(f"behaviour_epsilon must be None or a probability in [0, 1], got {behaviour_epsilon!r}.")
+        if not (isinstance(margin, numbers.Real) and not isinstance(margin, bool) and 0 <= margin < math.inf):
+            raise ValueError(f"margin must be a finite number >= 0, got {margin!r}.")
         number = isinstance(entropy_coeff, numbers.Real) and not isinstance(entropy_coeff, bool)
         if not (number and math.isfinite(entropy_coeff) and entropy_coeff >= 0):
             raise ValueError(f"entropy_coeff must be a finite number >= 0, got {entropy_coeff!r}.")
@@ -370,6 +375,7 @@ class MetaEvaluationLoss(LossModule):
         self.reduction = reduction
         self.credit = credit
         self.mirrored = bool(mirrored)
+        self.margin = float(margin)
         self.behaviour_epsilon = None if behaviour_epsilon is None else float(behaviour_epsilon)
         self.register_coeff_buffer("entropy_coeff", float(entropy_coeff))
         self._entropy_bonus = float(entropy_coeff) != 0.0
@@ -574,7 +580,7 @@ class MetaEvaluationLoss(LossModule):
         dist = self.looker_actor.get_dist(steps.select(*self.looker_actor.in_keys, strict=False))
         probs = dist.probs.reshape(q.shape)
         expected = (probs * q).sum(-1)
-        best = best_looks(q)
+        best = best_looks(q, self.margin)
         if self.credit == "best_look":  # cross-entropy toward the best look, 'hold' on a tie
             gain = dist.log_prob(best.reshape(dist.batch_shape)).reshape(-1)
         else:

@@ -142,6 +142,9 @@ class MetaConfig(LookerOptions):
     mirror_looks: bool = False
     """With the 'best_look' and 'every_look' credits, value each look's view as the mean of the critic's value of it
     and of its mirror image: what the look is worth to a mover as able on either side of the room."""
+    best_look_margin: float = 0.0
+    """With the 'best_look' credit, a pan is the label only where the critic values its view above holding's by more
+    than this (0: by any amount): where the goal is in no view, pans gain the critic about 0.01."""
     looker_frames: int = 1
     """Views of the latest cycles that phi2 and phi1 read, stacked on the image's channels (1: the view before the
     look): a memory of where the goal was, for the looker alone; needs looker_encoder 'own'."""
@@ -165,6 +168,12 @@ class MetaConfig(LookerOptions):
             "mirror_looks": (
                 self.mirror_looks is False or (self.mirror_looks is True and self.looker_credit in VIEW_CREDITS),
                 f"true or false; true values every look: looker_credit one of {VIEW_CREDITS}",
+            ),
+            "best_look_margin": (
+                finite(self.best_look_margin)
+                and self.best_look_margin >= 0
+                and (self.best_look_margin == 0 or self.looker_credit == "best_look"),
+                "a finite number >= 0, 0 unless looker_credit is 'best_look'",
             ),
             "looker_frames": (
                 int_in(self.looker_frames, 1, MAX_FRAME_STACK)
@@ -220,6 +229,7 @@ class Meta(_MoverA2C):
             behaviour_epsilon=options.epsilon if options.looker_importance_weights else None,
             credit=options.looker_credit,
             mirrored=options.mirror_looks,
+            margin=options.best_look_margin,
         )
         self.modules.update(phi1=self.phi1, phi2=self.phi2, w2=self.w2)
         self._optimizer("looker", [self.phi2], options.looker_lr, options.looker_optimizer)

@@ -699,6 +699,64 @@ def best_look_fig1() -> str:
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
 
 
+VIEW_FIG1 = "experiments/results/pan_vs_bearing_fig1_v3.csv"
+
+
+def looker_view_fig1() -> str:
+    """Where Figure 1's lookers at 60 degrees point the camera (``experiments/pan_vs_bearing.py``): per method, its
+    held-out success, pan rate and how often the goal is in the mover's view, ahead (inside the forward field of view)
+    and to the side, mean ± 95 % interval over its runs."""
+    rows = [r for r in read(VIEW_FIG1) if r["looker"] == "learned"]
+    by_method: dict[str, list[dict]] = {}
+    for r in rows:
+        by_method.setdefault(run_label(r["run"]).split(" seed ")[0], []).append(r)
+    columns = ("success", "pan_rate", "goal_in_view", "in_view_inside_fov", "in_view_outside_fov")
+    lines = [
+        [f"`{method}`", ", ".join(run_label(r["run"]).split(" seed ")[1] for r in runs)]
+        + [spread(r[column] for r in runs) for column in columns]
+        for method, runs in by_method.items()
+    ]
+    episodes = "/".join(sorted({r["episodes"] for r in rows}))
+    command = f"python experiments/pan_vs_bearing.py RUN --episodes {episodes} --csv {VIEW_FIG1}"
+    runs = braced(sorted({r["run"] for r in rows}))
+    header = ["looker", "seeds", "held-out success", "pan rate", "goal in view", "goal ahead: in view", "to the side"]
+    footer = runs_footer([{"command": command} | r for r in rows])
+    return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{runs}`: ", 1)
+
+
+LOOK_VALUES_FIG1 = "experiments/results/look_values_fig1_v3.csv"
+
+
+def look_values_fig1() -> str:
+    """What ``meta``'s critic says each look is worth and what its ``phi2`` picks (``experiments/look_values.py``), by
+    where the goal is in the looker's view: the means over the runs of the groups' shares of the looks, the critic's
+    gain of each pan over holding, its labels (the best look) and ``phi2``'s greedy looks."""
+    rows = read(LOOK_VALUES_FIG1)
+    runs = list(dict.fromkeys(r["run"] for r in rows))
+    totals = {run: sum(int(r["looks"]) for r in rows if r["run"] == run) for run in runs}
+    for r in rows:
+        r["share"] = int(r["looks"]) / totals[r["run"]]
+        r["best_hold"] = 1 - float(r["best_left"]) - float(r["best_right"])
+    lines = []
+    for group in dict.fromkeys(r["goal_in_s_bar"] for r in rows):
+        of = [r for r in rows if r["goal_in_s_bar"] == group]
+        mean = {key: sum(float(r[key]) for r in of) / len(of) for key in (*LOOK_VALUE_COLUMNS, "share", "best_hold")}
+        labels, greedy = ([mean[f"{what}_{u}"] for u in ("left", "hold", "right")] for what in ("best", "greedy"))
+        gains = f"{mean['gain_left']:+.3f} / {mean['gain_right']:+.3f}"
+        shares = (" / ".join(f"{x:.2f}" for x in values) for values in (labels, greedy))
+        lines.append([group, f"{mean['share']:.2f}", gains, *shares])
+    seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
+    header = [f"goal in the looker's view (`meta_eps0.3`, seeds {seeds})", "share of looks"]
+    header += ["Q(left) − Q(hold) / Q(right) − Q(hold)", "best look: left / hold / right", "`phi2`'s argmax: same"]
+    command = f"python experiments/look_values.py RUN --csv {LOOK_VALUES_FIG1}"
+    footer = runs_footer([{"command": command} | r for r in rows])
+    return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{braced(runs)}`: ", 1)
+
+
+LOOK_VALUE_COLUMNS = ("gain_left", "gain_right", "best_left", "best_right", "greedy_left", "greedy_hold")
+LOOK_VALUE_COLUMNS += ("greedy_right",)
+
+
 REFIT_FIG1 = "experiments/results/looker_refit_fig1_v3.csv"
 REFIT_MEMORY_FIG1 = "experiments/results/looker_refit_memory_fig1_v3.csv"
 
@@ -924,7 +982,6 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "train-flags": ("training.md", train_flags),
     "method-options": ("training.md", method_options),
     "goal-visibility": ("results.md", goal_visibility),
-    "value-of-looking": ("results.md", lambda: value_of_looking("value_of_looking")),
     "value-of-looking-v3": ("results.md", lambda: value_of_looking("value_of_looking_v3")),
     "fig1-v3": ("results.md", fig1_v3),
     "fig1-v3-vs-meta": ("results.md", lambda: difference_table(read(f"{V3}/summary.csv"), "meta_eps0.3")),
@@ -936,9 +993,6 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "paper-claims": ("results.md", paper_claims),
     "portable-census": ("training.md", portable_census),
     "portable-speed": ("performance.md", portable_speed),
-    "room-v1": ("results.md", lambda: runs_table("room_v1", ["command", "held-out"])),
-    "room-v2": ("results.md", lambda: runs_table("room_v2", ["command", "held-out"])),
-    "memory-mover": ("results.md", lambda: runs_table("memory_mover", ["command", "held-out"])),
     "fig1-summary": ("results.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
     "fig1-ablations": ("results.md", fig1_ablations),
     "fig1-v3-ablations": ("results.md", fig1_v3_ablations),
@@ -949,6 +1003,8 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "looker-swap": ("performance.md", looker_swap),
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
     "best-look-fig1": ("results.md", best_look_fig1),
+    "looker-view-fig1": ("results.md", looker_view_fig1),
+    "look-values-fig1": ("results.md", look_values_fig1),
     "looker-refit-fig1": ("results.md", looker_refit_fig1),
     "looker-memory-fig1": ("results.md", lambda: looker_refit_fig1(REFIT_MEMORY_FIG1, ("phi1", "fresh"))),
     "recipe-levers": ("performance.md", recipe_levers),

@@ -3,7 +3,7 @@
 Run from the repository root::
 
     python experiments/look_values.py runs/meta-seed0-TIME
-    python experiments/look_values.py RUN --cycles 150 --rooms 16 --epsilon 0.3
+    python experiments/look_values.py RUN --cycles 150 --rooms 16 --epsilon 0.3 --csv look_values.csv
 
 The run's mover plays ``--rooms`` held-out rooms for ``--cycles`` cycles with a looker that holds the camera, or
 takes a uniformly random look with probability ``--epsilon`` (E2's exploration around a looker that holds). In
@@ -12,13 +12,17 @@ each: ``Q(u) = V(s'(u))``. The looks are grouped by where the goal is in the loo
 in the left or right third, in the middle third), and for each group the script prints how many looks it holds,
 the mean of ``Q(pan left) - Q(hold)`` and ``Q(pan right) - Q(hold)``, how often each pan is the best look, and how
 often the run's ``phi2`` (``meta``) picks each look greedily, with its mean probability of each. A critic that values
-looking says: pan where the goal is out of view or off centre, hold where it is centred.
+looking says: pan where the goal is out of view or off centre, hold where it is centred. ``--csv`` adds the groups'
+rows to a CSV (replacing the run's rows).
 """
 
 from __future__ import annotations
 
+import csv
+import datetime
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -31,9 +35,15 @@ from activeperc_env.core import HOLD, LOOKER_ACTIONS
 from activeperc_env.scripted import goal_in_view
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env
 from activeperc_rl.recipe import make_method
+from activeperc_rl.runtime import portable
+from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 
 GROUPS = ("not in view", "left third", "middle third", "right third")
+COLUMNS = [
+    "run", "goal_in_s_bar", "looks", "gain_left", "gain_right", "best_left", "best_right", "greedy_left", "greedy_hold",
+    "greedy_right", "p_left", "p_hold", "p_right", "machine", "date",
+]  # fmt: skip
 
 
 class HoldOrExplore(nn.Module):
@@ -83,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cycles", type=whole_number, default=150, help="cycles played in each room (150)")
     parser.add_argument("--epsilon", type=float, default=0.3, help="probability of a random look (0.3)")
     parser.add_argument("--seed", type=whole_number, default=0, help="seed of the layouts and the sampling (0)")
+    parser.add_argument("--csv", type=Path, help="add the groups' rows to this CSV (replacing the run's rows)")
     args = parser.parse_args(argv)
     if args.rooms < 1 or args.cycles < 1 or not 0 <= args.epsilon <= 1:
         parser.error("--rooms and --cycles must be >= 1 and --epsilon a probability")
@@ -120,15 +131,29 @@ def main(argv: list[str] | None = None) -> int:
         "goal in s_bar  | looks | Q(left)-Q(hold) Q(right)-Q(hold) | best: left  right | phi2 greedy: left hold right"
         " | phi2 mean p: left hold right"
     )
+    lines = []
     for index, name in enumerate(GROUPS):
         rows = groups == index
         if not rows.any():
             continue
         left, right = gain[rows, 0], gain[rows, 2]
-        best = f"{np.mean(left > np.maximum(right, 0)):.2f}  {np.mean(right > np.maximum(left, 0)):.2f}"
-        picks = " ".join(f"{np.mean(greedy[rows] == u):.2f}" for u in range(3)) if greedy is not None else "-"
-        picks += " | " + (" ".join(f"{p:.2f}" for p in probs[rows].mean(0)) if probs is not None else "-")
-        print(f"{name:14s} | {rows.sum():5d} | {left.mean():+15.4f} {right.mean():+16.4f} | {best:>17s} | {picks}")
+        shares = (np.mean(left > np.maximum(right, 0)), np.mean(right > np.maximum(left, 0)))
+        picks = [np.mean(greedy[rows] == u) for u in range(3)] if greedy is not None else []
+        mean_p = list(probs[rows].mean(0)) if probs is not None else []
+        cells = " ".join(f"{x:.2f}" for x in picks) or "-"
+        cells += " | " + (" ".join(f"{p:.2f}" for p in mean_p) or "-")
+        best = f"{shares[0]:.2f}  {shares[1]:.2f}"
+        print(f"{name:14s} | {rows.sum():5d} | {left.mean():+15.4f} {right.mean():+16.4f} | {best:>17s} | {cells}")
+        numbers = [left.mean(), right.mean(), *shares, *(picks or [math.nan] * 3), *(mean_p or [math.nan] * 3)]
+        lines.append([args.run, name, int(rows.sum()), *(f"{x:.4f}" for x in numbers)])
+    if args.csv:
+        where = [portable.machine(), datetime.date.today().isoformat()]
+        kept = []
+        if args.csv.is_file():
+            with open(args.csv, newline="") as file:
+                kept = [row for row in csv.DictReader(file) if row["run"] != args.run]
+        write_csv(args.csv, COLUMNS, kept + [dict(zip(COLUMNS, line + where, strict=True)) for line in lines])
+        print(f"wrote {args.csv}")
     return 0
 
 

@@ -118,11 +118,18 @@ def test_look_values_tables_a_meta_runs_critic_and_looker(tmp_path):
     tiny = ["--num-envs", "4", "--rollout-length", "8", "--channels", "8", "--hidden-size", "32", "--no-progress"]
     assert cli.main([*tiny, "--frames", "96", "--eval-episodes", "0", "--bearing-bins", "12", "--out", str(out)]) == 0
     done = subprocess.run(
-        [sys.executable, str(EXPERIMENTS / "look_values.py"), str(out), "--rooms", "4", "--cycles", "20"],
+        [sys.executable, str(EXPERIMENTS / "look_values.py"), str(out), "--rooms", "4", "--cycles", "20", "--csv",
+         str(tmp_path / "v.csv")],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     lines = done.stdout.splitlines()
+    import csv
+
+    with open(tmp_path / "v.csv", newline="") as file:
+        rows = list(csv.DictReader(file))
+    assert rows[0]["goal_in_s_bar"] == "not in view" and rows[0]["greedy_hold"] == "1.0000"  # the printed table's
+    assert len(rows) == len(lines) - 3 and all(row["run"] == str(out) for row in rows)
     assert lines[0].endswith("epsilon 0.3") and "Q(left)-Q(hold)" in lines[1]
     greedy, probs = lines[2].split("|")[-2:]
     assert lines[2].startswith("not in view") and greedy.split() == ["0.00", "1.00", "0.00"]  # untrained phi2 holds

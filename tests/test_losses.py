@@ -11,12 +11,14 @@ from torch import nn
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives import ValueEstimators
 
+from activeperc_env.core import HOLD
 from activeperc_rl.losses import (
     BEST_LOOK_SHARES,
     LOOKER_CREDITS,
     JointA2CLoss,
     MetaEvaluationLoss,
     SharedEncoderA2CLoss,
+    best_looks,
     mirror,
     trajectory_ids,
     trajectory_means,
@@ -381,6 +383,19 @@ def test_credit_of_the_best_look_is_a_cross_entropy_toward_it_with_hold_winning_
     assert torch.allclose(logits.logits.grad, torch.tensor([2.0, -1.0, -1.0]) / 6, atol=1e-7)
     assert out["loss_looker"].item() == pytest.approx(math.log(3))
     assert out["meta_value"].item() == pytest.approx(1 / 3)  # as every_look's: what pi adds over holding
+
+
+def test_a_margin_keeps_hold_the_best_look_unless_a_pan_gains_more():
+    # Q = (1, 0, 3): right gains 3 over hold; Q = (0, 0, -2): nothing does. A margin of 3 labels both cycles 'hold'.
+    values = torch.tensor([[1.0, 0.0, 3.0], [0.0, 0.0, -2.0]])
+    assert best_looks(values).tolist() == [2, HOLD] and best_looks(values, 2.9).tolist() == [2, HOLD]
+    assert best_looks(values, 3.0).tolist() == [HOLD, HOLD]
+    logits = FixedLogits([0.0, 0.0, 0.0])
+    loss = MetaEvaluationLoss(make_actor(logits), pan_critic(), pan_critic(), credit="best_look", margin=3.0)
+    loss(every_look_td(), reference_td())["loss_looker"].backward()
+    assert torch.allclose(logits.logits.grad, torch.tensor([1.0, -2.0, 1.0]) / 3, atol=1e-7)  # both toward hold
+    with pytest.raises(ValueError, match="margin must be a finite number >= 0, got -1"):
+        MetaEvaluationLoss(make_actor(), pan_critic(), pan_critic(), credit="best_look", margin=-1)
 
 
 @pytest.mark.parametrize("credit", ["every_look", "best_look"])

@@ -15,7 +15,7 @@ ROOM = Room(
     defaults={"heading_spread": 90.0, "goal_distance": 4.0, "max_cycles": 90, "turn_speed": 30.0, "range_rays": 13},
     summary="a room in which looking pays: a unicycle base that turns a fifth as fast as the camera pans, a range "
     "sensor in the observation (`range`), the start and the goal 4 m apart, 90 cycles.",
-    changes="""What changed from v0 ([results](results.md#why-looking-pays-in-room-v1)):
+    changes="""What changed from v0 ([design notes](design.md#room-v1-looking-pays-for-scripted-policies)):
 
 - the robot (`assets/robot_v1.xml`): a heavy base driven as a unicycle by velocity servos on two slides and a yaw
   hinge, touching the room only with a frictionless bumper (nothing touches the floor), turning at 30 degrees a

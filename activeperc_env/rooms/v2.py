@@ -18,5 +18,5 @@ ROOM = Room(
 (`heading_spread` 180: in v1 the goal lay within 90 degrees of ahead, so driving ahead was the right guess), and the
 occluders trade places at random once placed (in v1 the green box always stood on the line from the start to the
 goal). The robot, physics, sensors, reward and spaces are v1's. What it does to learning is in
-[results](results.md#room-v2).""",
+[the design notes](design.md#room-v2-no-hints).""",
 )
