@@ -703,23 +703,16 @@ VIEW_FIG1 = "experiments/results/pan_vs_bearing_fig1_v3.csv"
 
 
 def looker_view_fig1() -> str:
-    """Where Figure 1's lookers at 60 degrees point the camera (``experiments/pan_vs_bearing.py``): per method, its
+    """Where Figure 1's lookers at 60 degrees point the camera (``experiments/pan_vs_bearing.py``), one row a run: its
     held-out success, pan rate and how often the goal is in the mover's view, ahead (inside the forward field of view)
-    and to the side, mean ± 95 % interval over its runs."""
-    rows = [r for r in read(VIEW_FIG1) if r["looker"] == "learned"]
-    by_method: dict[str, list[dict]] = {}
-    for r in rows:
-        by_method.setdefault(run_label(r["run"]).split(" seed ")[0], []).append(r)
+    and to the side."""
+    rows = sorted((r for r in read(VIEW_FIG1) if r["looker"] == "learned"), key=lambda r: run_label(r["run"]))
     columns = ("success", "pan_rate", "goal_in_view", "in_view_inside_fov", "in_view_outside_fov")
-    lines = [
-        [f"`{method}`", ", ".join(run_label(r["run"]).split(" seed ")[1] for r in runs)]
-        + [spread(r[column] for r in runs) for column in columns]
-        for method, runs in by_method.items()
-    ]
+    lines = [[run_label(r["run"]), *(f"{float(r[column]):.2f}" for column in columns)] for r in rows]
     episodes = "/".join(sorted({r["episodes"] for r in rows}))
     command = f"python experiments/pan_vs_bearing.py RUN --episodes {episodes} --csv {VIEW_FIG1}"
     runs = braced(sorted({r["run"] for r in rows}))
-    header = ["looker", "seeds", "held-out success", "pan rate", "goal in view", "goal ahead: in view", "to the side"]
+    header = ["run (60 degrees)", "held-out success", "pan rate", "goal in view", "goal ahead: in view", "to the side"]
     footer = runs_footer([{"command": command} | r for r in rows])
     return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{runs}`: ", 1)
 
