@@ -137,6 +137,7 @@ def test_the_budget_counts_each_learners_updates_and_frames(tmp_path, capsys):
                 "meta_eps0.3_looker_frames4_fov60": {"looker_frames": 4},
                 "meta_eps0.3_every_look_fov60": {"looker_credit": "every_look"},
                 "meta_eps0.3_margin0.03_fov60": {"best_look_margin": 0.03},
+                "meta_eps0.3_look_return_unweighted_fov60": {"looker_credit": "look_return"},
                 "meta_eps0.3_look_return_fov60": {"looker_credit": "look_return", "looker_importance_weights": True},
                 "meta_eps0.3_trajectory_fov60": {"looker_credit": "trajectory"},
             },
