@@ -718,6 +718,9 @@ def looker_view_fig1() -> str:
 
 
 LOOK_VALUES_FIG1 = "experiments/results/look_values_fig1_v3.csv"
+LOOK_VALUE_COLUMNS = (
+    "gain_left", "gain_right", "best_left", "best_right", "greedy_left", "greedy_hold", "greedy_right",
+)  # fmt: skip
 
 
 def look_values_fig1() -> str:
@@ -744,10 +747,6 @@ def look_values_fig1() -> str:
     command = f"python experiments/look_values.py RUN --csv {LOOK_VALUES_FIG1}"
     footer = runs_footer([{"command": command} | r for r in rows])
     return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{braced(runs)}`: ", 1)
-
-
-LOOK_VALUE_COLUMNS = ("gain_left", "gain_right", "best_left", "best_right", "greedy_left", "greedy_hold")
-LOOK_VALUE_COLUMNS += ("greedy_right",)
 
 
 REFIT_FIG1 = "experiments/results/looker_refit_fig1_v3.csv"

@@ -18,7 +18,6 @@ rows to a CSV (replacing the run's rows).
 
 from __future__ import annotations
 
-import csv
 import datetime
 import math
 import sys
@@ -26,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from pan_vs_bearing import write_rows
 from tensordict import TensorDict
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -36,7 +36,6 @@ from activeperc_env.scripted import goal_in_view
 from activeperc_rl.envs import LOOKER, MOVER, latest_view, make_env
 from activeperc_rl.recipe import make_method
 from activeperc_rl.runtime import portable
-from activeperc_rl.runtime.atomic import write_csv
 from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, load_run_config, restore_method
 
 GROUPS = ("not in view", "left third", "middle third", "right third")
@@ -146,13 +145,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:14s} | {rows.sum():5d} | {left.mean():+15.4f} {right.mean():+16.4f} | {best:>17s} | {cells}")
         numbers = [left.mean(), right.mean(), *shares, *(picks or [math.nan] * 3), *(mean_p or [math.nan] * 3)]
         lines.append([args.run, name, int(rows.sum()), *(f"{x:.4f}" for x in numbers)])
-    if args.csv:
+    if args.csv and lines:
         where = [portable.machine(), datetime.date.today().isoformat()]
-        kept = []
-        if args.csv.is_file():
-            with open(args.csv, newline="") as file:
-                kept = [row for row in csv.DictReader(file) if row["run"] != args.run]
-        write_csv(args.csv, COLUMNS, kept + [dict(zip(COLUMNS, line + where, strict=True)) for line in lines])
+        write_rows(args.csv, [dict(zip(COLUMNS, line + where, strict=True)) for line in lines], COLUMNS)
         print(f"wrote {args.csv}")
     return 0
 

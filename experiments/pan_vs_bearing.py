@@ -35,7 +35,7 @@ from activeperc_rl.envs import LOOKER, MOVER, latest_view  # noqa: E402
 from activeperc_rl.evaluate import evaluate, load_policy  # noqa: E402
 from activeperc_rl.models import FixedLooker  # noqa: E402
 from activeperc_rl.runtime import portable  # noqa: E402
-from activeperc_rl.runtime.atomic import atomic_path  # noqa: E402
+from activeperc_rl.runtime.atomic import atomic_path, write_csv  # noqa: E402
 
 COLUMNS = (
     "run", "looker", "episodes", "success", "pan_rate", "goal_in_view", "in_view_inside_fov", "in_view_outside_fov",
@@ -162,16 +162,13 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def write_rows(path: Path, rows: list[dict]) -> None:
-    """Add ``rows`` to the CSV at ``path``, replacing the rows of the same run (atomic rewrite)."""
+def write_rows(path: Path, rows: list[dict], columns=COLUMNS) -> None:
+    """Add ``rows`` (of one run) to the CSV at ``path``, replacing the rows of the same run (atomic rewrite)."""
     kept = []
     if path.is_file():
         with open(path, newline="") as file:
             kept = [row for row in csv.DictReader(file) if row["run"] != rows[0]["run"]]
-    with atomic_path(path) as temporary, open(temporary, "w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(kept + rows)
+    write_csv(path, list(columns), kept + rows)
 
 
 if __name__ == "__main__":
