@@ -378,8 +378,9 @@ GOAL_SETTING = ("v3", "LP_NUM_THREADS=0")
 """The column the goals are judged in (bold): the default room, MiniWorld drawing as ours does."""
 
 
-def runs_footer(rows: list[dict]) -> str:
-    """The commands of benchmark rows, each once, with the machines and dates it ran on and the outputs it printed."""
+def runs_footer(rows: list[dict], lead: str = "Commands: ") -> str:
+    """The commands of benchmark rows, each once, with the machines and dates it ran on and the outputs it printed,
+    after ``lead``."""
     runs: dict[str, dict[tuple[str, str], dict[str, None]]] = {}
     for r in rows:
         outputs = runs.setdefault(r["command"], {}).setdefault((r["machine"], r["date"]), {})
@@ -393,7 +394,7 @@ def runs_footer(rows: list[dict]) -> str:
         )
         for command, where in runs.items()
     ]
-    return "\n" + "Commands: " + "; ".join(commands) + ".\n"
+    return "\n" + lead + "; ".join(commands) + ".\n"
 
 
 def times(value: str) -> str:
@@ -667,8 +668,8 @@ def looker_swap_fig1() -> str:
         for path, path_rows in per_csv.items()
     )
     header = ["mover", "its own looker", "track looker", "the looker of its seed's run of"]
-    footer = runs_footer([{"command": command} | r for r in rows])
-    return markdown(header, lines) + footer.replace("Commands: ", f"One seed's RUNS at a time: {calls}. Command: ", 1)
+    footer = runs_footer([{"command": command} | r for r in rows], f"One seed's RUNS at a time: {calls}. Command: ")
+    return markdown(header, lines) + footer
 
 
 BEST_LOOK_FIG1 = "experiments/results/best_look_fig1_v3.csv"
@@ -713,8 +714,7 @@ def looker_view_fig1() -> str:
     command = f"python experiments/pan_vs_bearing.py RUN --episodes {episodes} --csv {VIEW_FIG1}"
     runs = braced(sorted({r["run"] for r in rows}))
     header = ["run (60 degrees)", "held-out success", "pan rate", "goal in view", "goal ahead: in view", "to the side"]
-    footer = runs_footer([{"command": command} | r for r in rows])
-    return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{runs}`: ", 1)
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows], f"Each RUN of `{runs}`: ")
 
 
 LOOK_VALUES_FIG1 = "experiments/results/look_values_fig1_v3.csv"
@@ -745,8 +745,8 @@ def look_values_fig1() -> str:
     header = [f"goal in the looker's view (`meta_eps0.3`, seeds {seeds})", "share of looks"]
     header += ["Q(left) − Q(hold) / Q(right) − Q(hold)", "best look: left / hold / right", "`phi2`'s argmax: same"]
     command = f"python experiments/look_values.py RUN --csv {LOOK_VALUES_FIG1}"
-    footer = runs_footer([{"command": command} | r for r in rows])
-    return markdown(header, lines) + footer.replace("Commands: ", f"Each RUN of `{braced(runs)}`: ", 1)
+    lead = f"Each RUN of `{braced(runs)}`: "
+    return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows], lead)
 
 
 REFIT_FIG1 = "experiments/results/looker_refit_fig1_v3.csv"
