@@ -139,6 +139,11 @@ def test_the_budget_counts_each_learners_updates_and_frames(tmp_path, capsys):
                 "meta_eps0.3_margin0.03_fov60": {"best_look_margin": 0.03},
                 "meta_eps0.3_look_return_unweighted_fov60": {"looker_credit": "look_return"},
                 "meta_eps0.3_look_return_fov60": {"looker_credit": "look_return", "looker_importance_weights": True},
+                "meta_eps0.3_look_return_entropy0.01_fov60": {
+                    "looker_credit": "look_return",
+                    "looker_importance_weights": True,
+                    "looker_entropy_coeff": 0.01,
+                },
                 "meta_eps0.3_trajectory_fov60": {"looker_credit": "trajectory"},
             },
         ),
