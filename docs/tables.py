@@ -138,11 +138,6 @@ def runs_table(name: str, columns: list[str]) -> str:
     return markdown(header, cells) + "\n" + legend + provenance(rows)
 
 
-def fig1_ablations() -> str:
-    """The ablations of the Figure 1 sweep after the runs of the config they change (as aggregate.py writes it)."""
-    return summary_table(with_reference(read(f"{FIG1}/ablations.csv"), read(f"{FIG1}/summary.csv")))
-
-
 V3 = "experiments/results/v3"
 
 
@@ -158,46 +153,6 @@ def fig1_v3_ablations() -> str:
     machines, as ``aggregate.py --ablations --against meta_eps0.3`` prints them."""
     rows = with_reference(read(f"{V3}/ablations.csv"), read(f"{V3}/summary.csv"))
     return summary_table(rows) + machines_line(rows) + "\n" + difference_table(rows, "meta_eps0.3")
-
-
-def importance_weights() -> str:
-    """The three runs whose ``phi2`` settled on 'hold', with the paper's gradient and with importance weights."""
-    paper = looker_outcomes(f"{FIG1}/summary.csv", f"{FIG1}/looker.csv")
-    weighted = looker_outcomes(f"{FIG1}/importance_weights/summary.csv", f"{FIG1}/importance_weights/looker.csv")
-    rows = []
-    for seed, after in weighted.items():
-        before = paper[seed]
-        rows.append(
-            [f"seed {seed}, the paper's gradient / weighted"]
-            + [
-                f"{before[key]} {joint} {after[key]}"
-                for key, joint in (("held_out", "/"), ("training", "/"), ("entropy", "→"), ("phi2", "→"))
-            ]
-        )
-    header = [
-        "run (`meta_eps0.3`, 100 degrees)",
-        "held-out success",
-        "training success",
-        "`phi2` entropy, min / end",
-        "`phi2`",
-    ]
-    return markdown(header, rows)
-
-
-def looker_outcomes(summary: str, looker: str) -> dict[str, dict]:
-    """``meta_eps0.3`` at 100 degrees by seed: held-out and training success, ``phi2``'s entropy and end."""
-    held_out = {r["seed"]: r for r in read(summary) if r["method"] == "meta_eps0.3" and r["fov"] == "100"}
-    outcomes = {}
-    for row in read(looker):
-        run, seed = row["run"].split("/seed")
-        if run == "meta_eps0.3_fov100":
-            outcomes[seed] = {
-                "held_out": f"{float(held_out[seed]['final_success_rate']):.2f}",
-                "training": f"{float(row['success_rate']):.2f}",
-                "entropy": f"{float(row['min_entropy']):.2f} / {float(row['looker_entropy']):.2f}",
-                "phi2": row["phi2"],
-            }
-    return outcomes
 
 
 V3_DEFAULT = "experiments/results/v3_400k"
@@ -675,11 +630,11 @@ def looker_swap_fig1() -> str:
 BEST_LOOK_FIG1 = "experiments/results/best_look_fig1_v3.csv"
 
 
-def best_look_fig1() -> str:
-    """Figure 1's movers at 60 degrees with their own looker, their critic's best look (the label of meta's
-    ``best_look`` credit, taken as the look) and the tracking looker: mean ± 95 % interval over a method's runs, and
-    the paired difference of the best look to the run's own looker."""
-    rows = read(BEST_LOOK_FIG1)
+def lookers_fig1(path: str, columns: dict[str, str], paired: dict[str, str]) -> str:
+    """Figure 1's movers at 60 degrees with each looker of ``columns`` (``experiments/looker_swap.py``'s name: its
+    header), from that script's CSV ``path``: mean ± 95 % interval over a method's runs; then, for each looker of
+    ``paired``, its paired difference to the run's own looker."""
+    rows = read(path)
     success = {(r["run"], r["looker"]): float(r["success_rate"]) for r in rows}
     by_method: dict[str, list[str]] = {}
     for run in dict.fromkeys(r["run"] for r in rows):
@@ -687,17 +642,42 @@ def best_look_fig1() -> str:
     lines = []
     for method, runs in by_method.items():
         seeds = ", ".join(run_label(run).split(" seed ")[1] for run in runs)
-        cells = [spread(success[run, looker] for run in runs) for looker in ("phi1", "critic's best look", "track")]
-        paired = mean_ci([success[run, "critic's best look"] - success[run, "phi1"] for run in runs])
-        lines.append([f"`{method}`", seeds, *cells, spread_of(*paired, "+.2f")])
+        cells = [spread(success[run, looker] for run in runs) for looker in columns]
+        for looker in paired:
+            cells.append(spread_of(*mean_ci([success[run, looker] - success[run, "phi1"] for run in runs]), "+.2f"))
+        lines.append([f"`{method}`", seeds, *cells])
     runs = list(dict.fromkeys(r["run"] for r in rows))
     episodes = "/".join(sorted({r["episodes"] for r in rows}))
-    command = (
-        f'python experiments/looker_swap.py {braced(runs)} --lookers phi1 "critic\'s best look" track '
-        f"--episodes {episodes} --csv {BEST_LOOK_FIG1}"
-    )
-    header = ["mover", "seeds", "its own looker", "its critic's best look", "track looker", "best look − own, by run"]
+    lookers = " ".join(f'"{name}"' if " " in name else name for name in columns)
+    command = f"python experiments/looker_swap.py {braced(runs)} --lookers {lookers} --episodes {episodes} --csv {path}"
+    header = ["mover", "seeds", *columns.values(), *paired.values()]
     return markdown(header, lines) + runs_footer([{"command": command} | r for r in rows])
+
+
+def best_look_fig1() -> str:
+    """Figure 1's movers with their own looker, their critic's best look (the label of meta's ``best_look`` credit,
+    taken as the look) and the tracking looker."""
+    columns = {"phi1": "its own looker", "critic's best look": "its critic's best look", "track": "track looker"}
+    return lookers_fig1(BEST_LOOK_FIG1, columns, {"critic's best look": "best look − own, by run"})
+
+
+SEARCH_FIG1 = "experiments/results/looker_search_fig1_v3.csv"
+
+
+def looker_search_fig1() -> str:
+    """Figure 1's movers with their own looker split into what it does while the goal is in its view and while it is
+    not: each half kept, the other held, panned at random or replaced by the tracking looker."""
+    columns = {
+        "phi1": "its own looker",
+        "phi1 in view, hold out of view": "own in view, hold out of view",
+        "phi1 in view, random pan out of view": "own in view, random pans out of view",
+        "track in view, phi1 out of view": "track in view, own out of view",
+    }
+    paired = {
+        "phi1 in view, random pan out of view": "random out − own",
+        "track in view, phi1 out of view": "track in − own",
+    }
+    return lookers_fig1(SEARCH_FIG1, columns, paired)
 
 
 VIEW_FIG1 = "experiments/results/pan_vs_bearing_fig1_v3.csv"
@@ -986,15 +966,14 @@ SECTIONS = {  # marker: (document in docs/, the function that makes its table)
     "portable-census": ("training.md", portable_census),
     "portable-speed": ("performance.md", portable_speed),
     "fig1-summary": ("results.md", lambda: summary_table(read(f"{FIG1}/summary.csv"))),
-    "fig1-ablations": ("results.md", fig1_ablations),
     "fig1-v3-ablations": ("results.md", fig1_v3_ablations),
-    "importance-weights": ("results.md", importance_weights),
     "goals": ("performance.md", goals),
     "time-to-success": ("performance.md", time_to_success),
     "recipe-options": ("performance.md", recipe_options),
     "looker-swap": ("performance.md", looker_swap),
     "looker-swap-fig1": ("results.md", looker_swap_fig1),
     "best-look-fig1": ("results.md", best_look_fig1),
+    "looker-search-fig1": ("results.md", looker_search_fig1),
     "looker-view-fig1": ("results.md", looker_view_fig1),
     "look-values-fig1": ("results.md", look_values_fig1),
     "looker-refit-fig1": ("results.md", looker_refit_fig1),

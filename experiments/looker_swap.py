@@ -8,7 +8,7 @@ Run from the repository root::
 
 Each run's mover plays ``--episodes`` held-out episodes (as ``activeperc-eval`` does) with four lookers: its own
 (``phi1``, as at test time; ``ia2c``'s looker in its place); ``phi1`` while the goal is in the looker's view and a
-random pan while it is not;
+random pan (or a hold) while it is not;
 :class:`~activeperc_env.scripted.TrackLooker`'s look (centre the goal) while it is in view and ``phi1``'s while it
 is not; the tracking looker alone; and the look whose view the run's critic values most (the label ``meta``'s
 ``best_look`` credit trains ``phi2`` toward, taken as the look: what ``phi2`` would do if it fitted its labels).
@@ -40,6 +40,7 @@ from activeperc_rl.runtime.checkpoint import CHECKPOINT, load_checkpoint, restor
 LOOKERS = (
     "phi1",
     "phi1 in view, random pan out of view",
+    "phi1 in view, hold out of view",
     "track in view, phi1 out of view",
     "track",
     "critic's best look",
@@ -104,6 +105,7 @@ def rows_of_run(
     ours = {
         "phi1": phi1,
         "phi1 in view, random pan out of view": InViewOrNot(phi1, track, fov),
+        "phi1 in view, hold out of view": InViewOrNot(phi1, ScriptedLooker("fixed", config.env, MAX_ROOMS), fov),
         "track in view, phi1 out of view": InViewOrNot(track, phi1, fov),
         "track": track,
         "critic's best look": BestLook(critic, mirrored),
