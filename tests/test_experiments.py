@@ -156,7 +156,8 @@ def test_looker_swap_scores_a_runs_mover_with_each_looker(tmp_path, method):
         return
     assert done.returncode == 0, done.stderr
     rows = list(csv.DictReader(open(table)))
-    lookers = ["phi1", "phi1 in view, random pan out of view", "track in view, phi1 out of view", "track"]
+    lookers = ["phi1", "phi1 in view, random pan out of view", "phi1 in view, hold out of view"]
+    lookers += ["track in view, phi1 out of view", "track"]
     lookers.append("critic's best look")
     assert [r["looker"] for r in rows] == lookers and all(r["episodes"] == "4" for r in rows)
     assert all(0 <= float(r["success_rate"]) <= 1 for r in rows)
@@ -215,7 +216,10 @@ def test_looker_swap_swaps_the_lookers_of_meta_and_ia2c_runs(tmp_path):
         (both[0], f"looker of {both[1]}"),
         (both[1], f"looker of {both[0]}"),
     ]
-    assert len(rows) == 2 * 6
+    sys.path.insert(0, str(EXPERIMENTS))
+    from looker_swap import LOOKERS
+
+    assert len(rows) == 2 * (len(LOOKERS) + 1)  # each mover: every looker, then the other run's
     done = subprocess.run(
         [*script, both[0], "--episodes", "2", "--lookers-of", str(runs["ia2c_fov100"])],
         capture_output=True, text=True, timeout=300, cwd=EXPERIMENTS.parent,
