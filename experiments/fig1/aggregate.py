@@ -11,9 +11,10 @@ Reads what ``sweep.py`` exported (``results/summary.csv`` and ``results/runs/*.c
 - writes the table of final held-out results into ``docs/results.md`` between the markers
   ``<!-- fig1-summary -->`` and ``<!-- /fig1-summary -->`` (and prints it).
 
-``--ablations`` does the same for ``results/ablations.csv`` (figure ``fig1_ablations.png``, markers
-``fig1-ablations``), with the runs of the config each ablation changes (``meta_eps0.3`` at 60 degrees, from
-``summary.csv``) drawn and listed first for reference. Run from anywhere::
+``--ablations`` does the same for ``results/ablations.csv`` (figure ``fig1_ablations.png`` beside it; the table is
+printed, and written only with ``--doc``, between the markers ``fig1-ablations``), with the runs of the config each
+ablation changes (``meta_eps0.3`` at 60 degrees, from ``summary.csv``) drawn and listed first for reference. Run
+from anywhere::
 
     python experiments/fig1/aggregate.py
     python experiments/fig1/aggregate.py --ablations
@@ -362,8 +363,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     committed = args.results.resolve() == RESULTS.resolve()
-    figures = args.figures or (ROOT / "docs" / "figures" if committed else args.results)
-    doc = args.doc or (DOC if committed else None)
+    into_docs = committed and not args.ablations  # room v0's ablations live in the design notes, as prose
+    figures = args.figures or (ROOT / "docs" / "figures" if into_docs else args.results)
+    doc = args.doc or (DOC if into_docs else None)
     name = "ablations" if args.ablations else "summary"
     try:
         rows = read_summary(args.results / f"{name}.csv")
