@@ -501,11 +501,14 @@ def test_difference_table_pairs_seeds(aggregate):
     rows += [row("meta_eps0.3", s, v) for s, v in ((0, 0.7), (1, 0.5), (3, 0.9))]  # seed 3 has no reference
     table = aggregate.difference_table(rows)
     # differences 0.2 and 0.1 over seeds 0 and 1: mean 0.15, t95(1) * std / sqrt(2) = 12.706 * 0.0707 / 1.414
-    assert "| 60 | meta_eps0.3 | 0,1 | +0.150 ± 0.635 (-0.485 to +0.785) |" in table
+    assert "| 60 | meta_eps0.3 | 0,1,3 | +0.150 ± 0.635 (seeds 0,1) |" in table
     assert "fixed_forward |" not in table.split("\n", 2)[2]
     assert aggregate.difference_table([row("fixed_forward", 0, 0.5)]) == ""
     against_meta = aggregate.difference_table(rows, "meta_eps0.3")  # the other way round: the reference lists the rest
-    assert "| 60 | fixed_forward | 0,1 | -0.150 ± 0.635 (-0.785 to +0.485) |" in against_meta
+    assert "| 60 | fixed_forward | 0,1,2 | -0.150 ± 0.635 (seeds 0,1) |" in against_meta
+    both = aggregate.difference_table(rows, "fixed_forward", "meta_eps0.3")  # a column each, blank against itself
+    assert "| 60 | fixed_forward | 0,1,2 |  | -0.150 ± 0.635 (seeds 0,1) |" in both
+    assert "| 60 | meta_eps0.3 | 0,1,3 | +0.150 ± 0.635 (seeds 0,1) |  |" in both
 
 
 def test_claims_are_judged_from_the_sweeps_means(aggregate):

@@ -21,7 +21,7 @@ from anywhere::
 
 With ``--results DIR`` (another sweep's folder) the table is printed and the figure written into ``DIR``; the
 committed document and figures change only with ``--doc`` and ``--figures``. It also prints each method's held-out
-success minus ``fixed_forward``'s, paired by seed, or minus another method's with ``--against METHOD``.
+success minus ``fixed_forward``'s, paired by seed, or minus other methods' with ``--against METHOD...``.
 """
 
 from __future__ import annotations
@@ -253,20 +253,28 @@ def paired_difference(rows: list[dict], method: str, fov: int, reference: str = 
     return seeds, *mean_ci([success[method, fov, s] - success[reference, fov, s] for s in seeds])
 
 
-def difference_table(rows: list[dict], reference: str = "fixed_forward") -> str:
-    """The Markdown table of each method's held-out success minus ``reference``'s at the same field of view, paired
-    by seed: mean and 95 % interval over the seeds both ran (empty when no method shares a seed with it)."""
+def difference_table(rows: list[dict], *references: str) -> str:
+    """The Markdown table of each method's held-out success minus each of ``references``' (default fixed_forward) at
+    the same field of view, paired by seed: mean ± 95 % half-width over the seeds both ran (named where fewer than the
+    method's), one column a reference; empty when no method shares a seed with any of them."""
+    references = references or ("fixed_forward",)
+    groups = group_runs(rows)
     lines = []
-    for method, fov in sorted(group_runs(rows), key=lambda key: key[1]):
-        seeds, mean, half = paired_difference(rows, method, fov, reference)
-        if method == reference or not seeds:
-            continue
-        interval = "" if math.isnan(half) else f" ± {half:.3f} ({mean - half:+.3f} to {mean + half:+.3f})"
-        lines.append(f"| {fov} | {method} | {','.join(map(str, seeds))} | {mean:+.3f}{interval} |")
+    for method, fov in sorted(groups, key=lambda key: key[1]):
+        own = [int(r["seed"]) for r in groups[method, fov]]
+        cells = []
+        for reference in references:
+            seeds, mean, half = paired_difference(rows, method, fov, reference)
+            cell = "" if method == reference or not seeds else f"{mean:+.3f}"
+            cell += f" ± {half:.3f}" if cell and not math.isnan(half) else ""
+            cell += f" (seeds {','.join(map(str, seeds))})" if cell and len(seeds) < len(own) else ""
+            cells.append(cell)
+        if any(cells):
+            lines.append(f"| {fov} | {method} | {','.join(map(str, own))} | {' | '.join(cells)} |")
     if not lines:
         return ""
-    header = f"| fov | method | seeds | held-out success minus {reference}'s, same seed |\n|---|---|---|---|\n"
-    return header + "\n".join(lines) + "\n"
+    columns = " | ".join(f"held-out success minus {reference}'s, same seed" for reference in references)
+    return f"| fov | method | seeds | {columns} |\n|---|---|---|{'---|' * len(references)}\n" + "\n".join(lines) + "\n"
 
 
 def replace_between(text: str, marker: str, content: str) -> str:
@@ -358,8 +366,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--against",
+        nargs="+",
         metavar="METHOD",
-        help="the method whose held-out success the paired differences subtract (default fixed_forward, where it ran)",
+        help="the methods whose held-out success the paired differences subtract, a column each (default "
+        "fixed_forward, where it ran)",
     )
     args = parser.parse_args(argv)
     committed = args.results.resolve() == RESULTS.resolve()
@@ -375,8 +385,9 @@ def main(argv: list[str] | None = None) -> int:
             rows = with_reference(rows, read_summary(args.results / "summary.csv"))
         check_one_budget(rows)
         methods = sorted({r["method"] for r in rows})
-        if args.against is not None and args.against not in methods:
-            raise ValueError(f"--against {args.against!r}: no runs of that method here; these ran: {methods}")
+        for method in args.against or ():
+            if method not in methods:
+                raise ValueError(f"--against {method!r}: no runs of that method here; these ran: {methods}")
         table = summary_table(rows) + machines_line(rows)
         marker = "fig1-ablations" if args.ablations else "fig1-summary"
         if doc is not None:
@@ -391,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))
     print(table, end="")
-    differences = difference_table(rows, args.against or "fixed_forward")
+    differences = difference_table(rows, *(args.against or ()))
     if differences:
         print("\n" + differences, end="")
     if not args.ablations and set(group_runs(rows)) >= {(m, fov) for m in METHODS for fov in (60, 100)}:
