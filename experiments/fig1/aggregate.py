@@ -265,10 +265,11 @@ def difference_table(rows: list[dict], *references: str) -> str:
         cells = []
         for reference in references:
             seeds, mean, half = paired_difference(rows, method, fov, reference)
-            cell = "" if method == reference or not seeds else f"{mean:+.3f}"
-            cell += f" ± {half:.3f}" if cell and not math.isnan(half) else ""
-            cell += f" (seeds {','.join(map(str, seeds))})" if cell and len(seeds) < len(own) else ""
-            cells.append(cell)
+            if method == reference or not seeds:
+                cells.append("")
+                continue
+            cell = f"{mean:+.3f}" + ("" if math.isnan(half) else f" ± {half:.3f}")
+            cells.append(cell + (f" (seeds {','.join(map(str, seeds))})" if len(seeds) < len(own) else ""))
         if any(cells):
             lines.append(f"| {fov} | {method} | {','.join(map(str, own))} | {' | '.join(cells)} |")
     if not lines:
